@@ -5,9 +5,9 @@
 //! per-node mode hands to the builder, arrive while the module keeps `out`
 //! moving, and the shared store port's answers arrive a fixed latency after
 //! their reads whatever the requester does. For them the FIFO takes every
-//! beat it has room for, drops a push while full and lets the caller flag
-//! it (so the refusal is a function of the data, not of the stalls), and
-//! empties at once on `clear` (the end of a merge). Its state is two
+//! beat it has room for, drops a push while full and lets the caller flag it
+//! (of the data alone if no pop precedes the last push; SPEC 8.15 step 4),
+//! and empties at once on `clear` (the end of a merge). Its state is two
 //! pointers of `cb + 1` bits, whose top bits tell full from empty, so that
 //! `full` and `empty` are single compares and no count is kept.
 

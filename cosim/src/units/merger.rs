@@ -71,6 +71,8 @@ pub struct MergeStats {
     pub refs: u64,
     /// Merges with leaves above the merging level.
     pub leaves_above: usize,
+    /// Merges whose leaves overflow a leaf FIFO (`leaf_overflow`).
+    pub leaf_overflows: usize,
     /// Merges that materialized references (`w_ref_req` beats).
     pub materialized: usize,
     /// Merges whose output has several roots.
@@ -99,6 +101,7 @@ impl MergeStats {
         self.records += other.records;
         self.refs += other.refs;
         self.leaves_above += other.leaves_above;
+        self.leaf_overflows += other.leaf_overflows;
         self.materialized += other.materialized;
         self.several_roots += other.several_roots;
         self.fetch_errors += other.fetch_errors;
@@ -216,6 +219,7 @@ pub fn merge_stats(txs: &[MergerTransaction]) -> MergeStats {
         stats.records += w.nodes.len() as u64;
         stats.refs += w.refs.len() as u64;
         stats.leaves_above += !tx.leaves.is_empty() as usize;
+        stats.leaf_overflows += tx.header.leaf_overflow as usize;
         stats.materialized += !w.ref_reqs.is_empty() as usize;
         stats.several_roots += (w.header.roots > 1) as usize;
     }

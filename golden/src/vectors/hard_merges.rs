@@ -28,6 +28,7 @@ use glam::{DVec3, Vec3};
 #[cfg(doc)]
 use super::streams::Merges;
 use crate::merge::merge_module::MergeDesign;
+use crate::merge::MergeMode;
 
 fn golden_err(what: impl std::fmt::Display) -> String {
     format!("hard merges: {what}")
@@ -40,9 +41,13 @@ type Result<T> = std::result::Result<T, String>;
 pub struct HardMerges {
     /// In the order a run sends them.
     pub merges: Vec<MergerTransaction>,
-    /// Real merges left out because their leaves overflow the merger's
-    /// leaf FIFOs (golden has no bit-exact model of a dropped leaf).
+    /// Merges left out because what a FIFO drops depends on timing or is
+    /// not modelled ([`MergerTransaction::exact`]).
     pub overflowing: usize,
+    /// Merges whose leaves overflow a leaf FIFO (`leaf_overflow`), expected
+    /// bit for bit with the leaves the FIFOs keep
+    /// ([`kept_leaves`](crate::merge::merger::kept_leaves)): per-node mode's.
+    pub leaf_overflows: usize,
     /// Merges with an input of several roots.
     pub several_root_inputs: usize,
 }
@@ -76,9 +81,11 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`), on
-/// the first case of the most inputs. Merges
-/// of more than `k` inputs, and those whose leaves overflow the leaf FIFOs,
-/// are left out.
+/// the first case of the most inputs; and in per-node mode a flood of
+/// leaves ([`leaf_flood`]) that overflows the leaf FIFO of its LOD. Merges of more
+/// than `k` inputs, and those the RTL does not write bit for bit whatever
+/// the timing ([`MergerTransaction::exact`]: every overflow but per-node
+/// mode's leaves), are left out.
 pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     let p = &d.params;
     let k = d.inputs;
@@ -96,19 +103,32 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     for (store, table, ids) in &cases {
         let tx =
             merger_transaction(store, table, ids, d.mode, out_id, k, sizes).map_err(golden_err)?;
-        if tx.header.leaf_overflow {
+        if !tx.exact {
             out.overflowing += 1;
             continue;
         }
+        out.leaf_overflows += tx.header.leaf_overflow as usize;
         out.several_root_inputs +=
             ids.iter()
                 .any(|i| store.get(*i).is_some_and(|h| h.root_count > 1)) as usize;
         out.merges.push(tx);
     }
-    for (store, table, ids) in deep_cases(p)?.iter().filter(|c| c.2.len() <= k) {
+    // The level modes' merge of the flood is not exact (`tx.exact`).
+    let flood = match d.mode {
+        MergeMode::PerNode { .. } => leaf_flood(p, sizes.leaf_bits)?,
+        _ => None,
+    };
+    for (store, table, ids) in deep_cases(p)?
+        .iter()
+        .chain(&flood)
+        .filter(|c| c.2.len() <= k)
+    {
         let tx =
             merger_transaction(store, table, ids, d.mode, out_id, k, sizes).map_err(golden_err)?;
-        if !tx.header.leaf_overflow {
+        if !tx.exact {
+            out.overflowing += 1;
+        } else {
+            out.leaf_overflows += tx.header.leaf_overflow as usize;
             out.merges.push(tx);
         }
     }
@@ -407,6 +427,41 @@ fn leaf_ladder(p: &Params) -> Result<RealCase> {
     Ok((store, table, vec![1, 2]))
 }
 
+/// The largest `leaf_bits` [`leaf_flood`] floods: `2^8 + 2` triangles.
+const FLOOD_MOST_LEAF_BITS: u32 = 8;
+
+/// A flood of leaves: `2^leaf_bits + 2` triangles of one size on a lattice,
+/// each a leaf of its own voxel at one LOD, merged with a tiny deep soup, so
+/// the merging level lies below that LOD and its leaf FIFO receives two
+/// leaves more than it holds (`leaf_overflow`; the FIFO keeps the first
+/// `2^leaf_bits`). None when `leaf_bits` is above [`FLOOD_MOST_LEAF_BITS`].
+fn leaf_flood(p: &Params, leaf_bits: u32) -> Result<Option<RealCase>> {
+    if leaf_bits > FLOOD_MOST_LEAF_BITS {
+        return Ok(None);
+    }
+    let n = (1usize << leaf_bits) + 2;
+    let side = (1..).find(|s| s * s * s >= n).unwrap_or(n);
+    let mut m = Mesh::default();
+    for i in 0..n {
+        let (x, y, z) = (i % side, i / side % side, i / (side * side));
+        // 0.6 of a lattice step and 0.2 from its corner: no two triangles
+        // share a voxel of the LOD they sit at.
+        let c = Vec3::new(x as f32, y as f32, z as f32) + Vec3::splat(0.2);
+        push_triangle(
+            &mut m,
+            c,
+            c + Vec3::new(0.6, 0.0, 0.0),
+            c + Vec3::new(0.0, 0.6, 0.3),
+        );
+    }
+    let (lo, hi) = m.bounds();
+    let lattice = build(&m, &GridMap::fit(lo, hi, p), p, 1).map_err(golden_err)?;
+    let tiny = try_soup(p, 2, 1, 0.001, 21).map_err(golden_err)?;
+    let top = lattice.top_lod;
+    let placed = place(&tiny, [0.5, 0.5, 0.5]);
+    case_of(p, vec![(lattice, Translation::zero(top)), (tiny, placed)]).map(Some)
+}
+
 /// Triangle counts of [`depth_first_store`]'s dense input, largest first:
 /// the first whose records `I` can number is taken (1,200 gives about
 /// 2,600 records, which at `I = 12` reach index bit 11).
@@ -632,8 +687,8 @@ fn cfg_error_merge(
     ) else {
         return Ok(None);
     };
-    // As with the other hard merges: golden has no bit-exact model of a
-    // dropped leaf.
+    // The error's merge overflows nothing, so that its header differs from
+    // the other inputs' merge only in the fetcher's error.
     if tx.header.leaf_overflow {
         return Ok(None);
     }
@@ -702,7 +757,49 @@ fn check_cfg_errors(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::merge::MergeMode;
+
+    /// The flood sends its LOD's leaf FIFO two leaves more than it holds, in
+    /// a level mode and in per-node mode, at the default and at the long
+    /// runs' small configuration: the header flags it, the base keeps the
+    /// first `2^leaf_bits` (then the module's nodes, all deeper), and the
+    /// writer writes the merge without error. Per-node mode's merge is
+    /// exact; the level mode's is not (its builder may read the FIFO before
+    /// the last leaf).
+    #[test]
+    fn the_leaf_flood_overflows_its_fifo_by_two_leaves() {
+        let small = Params::new(8, 0, 12, 3).unwrap();
+        for p in [Params::default(), small] {
+            for leaf_bits in [4, 6] {
+                let (store, table, ids) = leaf_flood(&p, leaf_bits).unwrap().unwrap();
+                let held = 1usize << leaf_bits;
+                let sizes = MergerSizes {
+                    leaf_bits,
+                    ..MergerSizes::new(&p)
+                };
+                let modes = [
+                    MergeMode::Overlap { num: 1, den: 2 },
+                    MergeMode::PerNode { num: 1, den: 2 },
+                ];
+                for mode in modes {
+                    let at = format!("D = {} L = {leaf_bits} {mode}", p.max_lod);
+                    let tx = merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap();
+                    let lod = tx.leaves[0].record.voxel.lod;
+                    assert_eq!(tx.leaves.len(), held + 2, "{at}");
+                    assert!(tx.leaves.iter().all(|l| l.record.voxel.lod == lod), "{at}");
+                    assert!(tx.header.leaf_overflow, "{at}");
+                    let per_node = matches!(mode, MergeMode::PerNode { .. });
+                    assert_eq!(tx.exact, per_node, "{at}");
+                    assert_eq!(tx.base[..held], tx.leaves[..held], "{at}");
+                    assert!(
+                        tx.base[held..].iter().all(|b| b.record.voxel.lod > lod),
+                        "{at}"
+                    );
+                    assert_eq!(tx.header.writer.err, 0, "{at}");
+                }
+            }
+            assert!(leaf_flood(&p, FLOOD_MOST_LEAF_BITS + 1).unwrap().is_none());
+        }
+    }
 
     /// The level-mode and per-node merges every store-order case runs.
     const BOTH_MODES: [MergeMode; 2] = [

@@ -223,6 +223,7 @@ pub(super) fn run(
         beats_in: t.cfg_accepted + t.data_beats_in,
         beats_out: t.beats_out,
         leaves_above: s.leaves_above as u64,
+        leaf_overflows: s.leaf_overflows as u64,
         materialized: s.materialized as u64,
         several_roots: s.several_roots as u64,
         multi_pass: s.multi_pass as u64,

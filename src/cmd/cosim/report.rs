@@ -99,6 +99,8 @@ pub(super) struct MergerReport {
     pub(super) beats_in: u64,
     pub(super) beats_out: u64,
     pub(super) leaves_above: u64,
+    /// Merges whose leaves overflow a leaf FIFO (`leaf_overflow`).
+    pub(super) leaf_overflows: u64,
     pub(super) materialized: u64,
     pub(super) several_roots: u64,
     /// Per-node merges of more than one pass, and voxels that descended.

@@ -288,10 +288,24 @@ pub struct MergerTransaction {
     /// The merging level (`None`: per-node mode or refused).
     pub chosen: Option<u8>,
     /// The inputs' leaves above the merging level, reused, merged by
-    /// (LOD, Morton, rank): the builder's `base{d}` for `d` above it.
+    /// (LOD, Morton, rank): what the leaf merge pushes into the leaf FIFOs.
     pub leaves: Vec<BaseNode>,
-    /// The builder's base: `leaves`, then the module's nodes.
+    /// The builder's base: the leaves the FIFOs kept ([`kept_leaves`]), then
+    /// the module's nodes.
     pub base: Vec<BaseNode>,
+    /// Whether the RTL writes this merge bit for bit whatever the timing of
+    /// its streams. False when a FIFO overflows ([`MergerHeader::leaf_overflow`])
+    /// and what it drops depends on timing or is not modelled:
+    /// - level modes, leaves: the builder may read a leaf FIFO before the
+    ///   last leaf is pushed (an input whose walk ends above the merging
+    ///   level sends its `End` there while its leaves still flow), so
+    ///   whether a leaf is dropped depends on the timing;
+    /// - per-node mode, the module's nodes: a created node may be dropped
+    ///   while its references still reach the writer's `crefs`, a merged
+    ///   hierarchy golden does not model (its `writer` is of every node).
+    ///
+    /// Per-node mode's dropped leaves are modelled ([`kept_leaves`]).
+    pub exact: bool,
     /// The writer's run (its `builder` is the upper builder's run).
     pub writer: WriterTransaction,
     /// The merger's `header` beat.
@@ -447,6 +461,25 @@ pub fn merge_leaves(fetch: &[FetchTransaction]) -> Vec<BaseNode> {
         .collect();
     all.sort_by_key(|(n, r)| (n.record.voxel.lod, morton(&n.record.voxel), *r));
     all.iter().map(|(n, _)| BaseNode::reused(n)).collect()
+}
+
+/// The leaves per-node mode's FIFOs keep: the first `2^leaf_bits` of each
+/// LOD, in the order of `leaves` (the leaf merge's). A leaf pushed into a
+/// full FIFO is dropped (8.15 step 4), and in per-node mode the builder
+/// reads no FIFO before the module is done and the leaves are complete, so
+/// what a FIFO keeps is a function of the data. The level modes' builder
+/// may read a leaf FIFO earlier ([`MergerTransaction::exact`]).
+pub fn kept_leaves(leaves: &[BaseNode], leaf_bits: u32) -> Vec<BaseNode> {
+    let mut per_lod = std::collections::BTreeMap::<u8, u64>::new();
+    leaves
+        .iter()
+        .filter(|n| {
+            let c = per_lod.entry(n.record.voxel.lod).or_default();
+            *c += 1;
+            *c <= 1u64 << leaf_bits
+        })
+        .cloned()
+        .collect()
 }
 
 /// Whether some LOD has more leaves than its FIFO holds (`2^leaf_bits`).
@@ -639,24 +672,27 @@ pub fn merger_transaction_in_range(
         ModulePass::Level(_) => chosen.is_some(),
         ModulePass::PerNode(pn) => pn.passes > 0,
     };
-    let (leaves, base) = if ok {
-        let leaves = merge_leaves(&fetch);
-        let mut base = leaves.clone();
-        base.extend(module_base(module.out(), &p)?);
-        (leaves, base)
+    let (leaves, nodes) = if ok {
+        (merge_leaves(&fetch), module_base(module.out(), &p)?)
     } else {
         (Vec::new(), Vec::new())
     };
+    // Per-node mode's FIFOs hold the module's nodes as well (SPEC 8.15), at
+    // LODs from `lo` down, where no leaf is.
+    let leaves_over = leaf_overflow(&leaves, sizes.leaf_bits);
+    let (exact, nodes_over) = match &module {
+        ModulePass::Level(_) => (!leaves_over, false),
+        ModulePass::PerNode(_) => {
+            let over = leaf_overflow(&nodes, sizes.leaf_bits);
+            (!over, over)
+        }
+    };
+    let mut base = kept_leaves(&leaves, sizes.leaf_bits);
+    base.extend(nodes);
     let writer = writer_transaction(&base, &hs, &p, sizes.capacity_bits, out_id)?;
     let header = MergerHeader {
         writer: writer.header,
-        // Per-node mode: every LOD's FIFO holds the leaves above `lo` or the
-        // module's nodes of that LOD's pass (the builder sees them once the
-        // module is done, SPEC 8.15), so the whole base counts.
-        leaf_overflow: match &module {
-            ModulePass::Level(_) => leaf_overflow(&leaves, sizes.leaf_bits),
-            ModulePass::PerNode(_) => leaf_overflow(&base, sizes.leaf_bits),
-        },
+        leaf_overflow: leaves_over || nodes_over,
         count_overflow: false,
         fetch_err: fetch_err::NONE,
         fetch_rank: 0,
@@ -671,6 +707,7 @@ pub fn merger_transaction_in_range(
         chosen,
         leaves,
         base,
+        exact,
         writer,
     })
 }

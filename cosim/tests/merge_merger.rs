@@ -135,6 +135,7 @@ fn bench(
         seed,
         in_stall: cosim::tb::Stalls::Coin(stall),
         out_stall: cosim::tb::Stalls::Coin(stall),
+        watchdog_cycles: cosim::units::chunked::WATCHDOG_CYCLES,
         ..BenchConfig::default()
     };
     let (r, counts) = run_multi_stream_bench_watching(engine, ins, outs, &config, &["done"])
@@ -168,6 +169,7 @@ fn batch_bench(
         seed,
         in_stall: cosim::tb::Stalls::Coin(stall),
         out_stall: cosim::tb::Stalls::Coin(stall),
+        watchdog_cycles: cosim::units::chunked::WATCHDOG_CYCLES,
         ..BenchConfig::default()
     };
     let r = batch

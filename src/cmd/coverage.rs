@@ -165,10 +165,11 @@ const FLOORS: [(&str, Aims); 3] = [
     ),
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_pn1_2_r16_f256_c5_l6",
-        // Likewise (92.6% / 58.3%, `report` held in runs of 64).
+        // Likewise (93.4% / 60.7%: `report` held in runs of 64, two seeds,
+        // the leaf flood filling the FIFOs of LODs 3 to 7).
         Aims {
-            line: 92.5,
-            toggle: 58.0,
+            line: 93.0,
+            toggle: 60.5,
         },
     ),
     (

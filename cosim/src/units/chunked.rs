@@ -251,11 +251,19 @@ impl ChunkTotals {
     }
 }
 
+/// Cycles without a handshake at any port before a chunked run is called
+/// hung. The merger top's record writer takes a merge's level beats into
+/// its buffers before it writes a record, with no port moving meanwhile:
+/// the per-node hard merges' leaf flood (1,290 leaves at the default with
+/// `leaf_bits` 8) keeps it busy for more than 1,000 cycles.
+pub const WATCHDOG_CYCLES: u64 = 10_000;
+
 /// The bench of chunk `chunks` (0-based) of a run of `config`: its own
 /// stall seed (`seed ^ chunk`).
 pub(crate) fn chunk_bench(config: &RunConfig, chunks: usize) -> BenchConfig {
     BenchConfig {
         seed: config.seed ^ chunks as u64,
+        watchdog_cycles: WATCHDOG_CYCLES,
         in_stall: config.stall,
         out_stall: config.stall,
         stream_stalls: config.stream_stalls.clone(),

@@ -430,10 +430,17 @@ fn leaf_ladder(p: &Params) -> Result<RealCase> {
 /// The largest `leaf_bits` [`leaf_flood`] floods: `2^8 + 2` triangles.
 const FLOOD_MOST_LEAF_BITS: u32 = 8;
 
-/// A flood of leaves: `2^leaf_bits + 2` triangles of one size on a lattice,
-/// each a leaf of its own voxel at one LOD, merged with a tiny deep soup, so
-/// the merging level lies below that LOD and its leaf FIFO receives two
-/// leaves more than it holds (`leaf_overflow`; the FIFO keeps the first
+/// The lattices of [`leaf_flood`], each half the scale of the one before:
+/// leaves at as many consecutive LODs (at D = 8 and `leaf_bits` 4 or 6, LODs
+/// 3 to 7: every LOD whose voxels outnumber a FIFO, above the tiny soup's).
+const FLOOD_LATTICES: usize = 5;
+
+/// A flood of leaves: [`FLOOD_LATTICES`] lattices of `2^leaf_bits + 2`
+/// triangles each, the triangles of a lattice of one size and each a leaf of
+/// its own voxel, every lattice at half the scale of the one before, so at
+/// the next LOD; merged with a tiny deep soup, so the merging level lies
+/// below them and the leaf FIFO of each lattice's LOD receives two leaves
+/// more than it holds (`leaf_overflow`; the FIFO keeps the first
 /// `2^leaf_bits`). None when `leaf_bits` is above [`FLOOD_MOST_LEAF_BITS`].
 fn leaf_flood(p: &Params, leaf_bits: u32) -> Result<Option<RealCase>> {
     if leaf_bits > FLOOD_MOST_LEAF_BITS {
@@ -442,24 +449,38 @@ fn leaf_flood(p: &Params, leaf_bits: u32) -> Result<Option<RealCase>> {
     let n = (1usize << leaf_bits) + 2;
     let side = (1..).find(|s| s * s * s >= n).unwrap_or(n);
     let mut m = Mesh::default();
-    for i in 0..n {
-        let (x, y, z) = (i % side, i / side % side, i / (side * side));
-        // 0.6 of a lattice step and 0.2 from its corner: no two triangles
-        // share a voxel of the LOD they sit at.
-        let c = Vec3::new(x as f32, y as f32, z as f32) + Vec3::splat(0.2);
-        push_triangle(
-            &mut m,
-            c,
-            c + Vec3::new(0.6, 0.0, 0.0),
-            c + Vec3::new(0.0, 0.6, 0.3),
-        );
+    // The first lattice (step 2) at the origin, `2 side` a side; the others
+    // on it (`y` from `2 side`), side by side along `x` (less than `2 side`
+    // together): all within `3 side`.
+    let mut origin = Vec3::ZERO;
+    for j in 0..FLOOD_LATTICES {
+        let step = 2.0f32.powi(1 - j as i32);
+        for i in 0..n {
+            let (x, y, z) = (i % side, i / side % side, i / (side * side));
+            // 0.6 of a lattice step and 0.2 from its corner: no two
+            // triangles share a voxel of the LOD they sit at.
+            let c =
+                origin + Vec3::new(x as f32, y as f32, z as f32) * step + Vec3::splat(0.2 * step);
+            push_triangle(
+                &mut m,
+                c,
+                c + Vec3::new(0.6 * step, 0.0, 0.0),
+                c + Vec3::new(0.0, 0.6 * step, 0.3 * step),
+            );
+        }
+        origin = match j {
+            0 => Vec3::new(0.0, 2.0 * side as f32, 0.0),
+            _ => origin + Vec3::new(side as f32 * step, 0.0, 0.0),
+        };
     }
-    let (lo, hi) = m.bounds();
-    let lattice = build(&m, &GridMap::fit(lo, hi, p), p, 1).map_err(golden_err)?;
+    // Origin 0 and a power-of-two unit: every lattice step is a voxel edge
+    // and every lattice origin a multiple of it.
+    let map = GridMap::fit(Vec3::ZERO, Vec3::splat(3.0 * side as f32), p);
+    let lattices = build(&m, &map, p, 1).map_err(golden_err)?;
     let tiny = try_soup(p, 2, 1, 0.001, 21).map_err(golden_err)?;
-    let top = lattice.top_lod;
+    let top = lattices.top_lod;
     let placed = place(&tiny, [0.5, 0.5, 0.5]);
-    case_of(p, vec![(lattice, Translation::zero(top)), (tiny, placed)]).map(Some)
+    case_of(p, vec![(lattices, Translation::zero(top)), (tiny, placed)]).map(Some)
 }
 
 /// Triangle counts of [`depth_first_store`]'s dense input, largest first:
@@ -757,6 +778,7 @@ fn check_cfg_errors(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::merge::merge_level::BaseNode;
 
     /// The flood sends its LOD's leaf FIFO two leaves more than it holds, in
     /// a level mode and in per-node mode, at the default and at the long
@@ -783,15 +805,32 @@ mod tests {
                 for mode in modes {
                     let at = format!("D = {} L = {leaf_bits} {mode}", p.max_lod);
                     let tx = merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap();
-                    let lod = tx.leaves[0].record.voxel.lod;
-                    assert_eq!(tx.leaves.len(), held + 2, "{at}");
-                    assert!(tx.leaves.iter().all(|l| l.record.voxel.lod == lod), "{at}");
+                    let mut per_lod = std::collections::BTreeMap::<u8, Vec<&BaseNode>>::new();
+                    for l in &tx.leaves {
+                        per_lod.entry(l.record.voxel.lod).or_default().push(l);
+                    }
+                    let lods: Vec<u8> = per_lod.keys().copied().collect();
+                    let first = lods[0];
+                    assert!(first >= 3, "{at}: LOD {first} has at most 64 voxels");
+                    let want: Vec<u8> = (first..).take(FLOOD_LATTICES).collect();
+                    assert_eq!(lods, want, "{at}");
+                    let counts: Vec<usize> = per_lod.values().map(|l| l.len()).collect();
+                    assert!(
+                        counts.iter().all(|&c| c == held + 2),
+                        "{at}: {lods:?} {counts:?}"
+                    );
                     assert!(tx.header.leaf_overflow, "{at}");
                     let per_node = matches!(mode, MergeMode::PerNode { .. });
                     assert_eq!(tx.exact, per_node, "{at}");
-                    assert_eq!(tx.base[..held], tx.leaves[..held], "{at}");
+                    let kept: Vec<&BaseNode> = per_lod
+                        .values()
+                        .flat_map(|l| l[..held].iter().copied())
+                        .collect();
+                    let n = kept.len();
+                    assert!(tx.base[..n].iter().eq(kept), "{at}");
+                    let last = lods[lods.len() - 1];
                     assert!(
-                        tx.base[held..].iter().all(|b| b.record.voxel.lod > lod),
+                        tx.base[n..].iter().all(|b| b.record.voxel.lod > last),
                         "{at}"
                     );
                     assert_eq!(tx.header.writer.err, 0, "{at}");

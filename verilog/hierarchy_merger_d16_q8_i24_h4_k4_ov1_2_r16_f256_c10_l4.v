@@ -489,12 +489,12 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
     wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
     reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves1_wr;                    // rtl-gen/src/drop_fifo.rs:57
@@ -510,11 +510,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
     reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves2_wr;                    // rtl-gen/src/drop_fifo.rs:57
@@ -530,12 +530,12 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:398
     reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves3_wr;                    // rtl-gen/src/drop_fifo.rs:57
@@ -551,12 +551,12 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:399
     reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves4_wr;                    // rtl-gen/src/drop_fifo.rs:57
@@ -572,11 +572,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
     reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves5_wr;                    // rtl-gen/src/drop_fifo.rs:57
@@ -592,12 +592,12 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:398
     reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves6_wr;                    // rtl-gen/src/drop_fifo.rs:57
@@ -613,11 +613,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
     reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves7_wr;                    // rtl-gen/src/drop_fifo.rs:57
@@ -633,12 +633,12 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:399
     reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves8_wr;                    // rtl-gen/src/drop_fifo.rs:57
@@ -654,12 +654,12 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:398
     reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves9_wr;                    // rtl-gen/src/drop_fifo.rs:57
@@ -675,11 +675,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
     reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves10_wr;                   // rtl-gen/src/drop_fifo.rs:57
@@ -695,11 +695,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
     reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves11_wr;                   // rtl-gen/src/drop_fifo.rs:57
@@ -715,13 +715,13 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:398
+    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:399
     reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves12_wr;                   // rtl-gen/src/drop_fifo.rs:57
@@ -737,11 +737,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
     reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves13_wr;                   // rtl-gen/src/drop_fifo.rs:57
@@ -757,11 +757,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
     reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves14_wr;                   // rtl-gen/src/drop_fifo.rs:57
@@ -777,12 +777,12 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:398
     reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves15_wr;                   // rtl-gen/src/drop_fifo.rs:57
@@ -798,21 +798,21 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
     wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
     wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
-    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:399
     reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
     wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:391
-    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:391
-    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:389
+    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:389
+    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:398
     reg leaf_overflow_header;                // rtl-gen/src/merge/merger/mod.rs:228
-    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:405
-    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:414
+    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:403
+    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:412
     reg count_overflow_header;               // rtl-gen/src/merge/merger/mod.rs:228
     wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:417
     wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:417
@@ -1033,7 +1033,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves0_head_out = base0_above_m & leaves0_empty_not;
     assign base0_end_sent_not = ~base0_end_sent;
     assign out_is_ref_not = ~out_is_ref;
-    assign base0_at_m_or = (((base0_at_m & u_module_out_valid) & out_is_ref_not) | (base0_above_m & (leaves0_empty_not | leaves_done))) | ((choice_known & (~base0_at_m)) & (~base0_above_m));
+    assign base0_at_m_or = (((base0_at_m & u_module_out_valid) & out_is_ref_not) | (base0_above_m & leaves_done)) | ((choice_known & (~base0_at_m)) & (~base0_above_m));
     assign base0_end_sent_and = base0_end_sent_not & base0_at_m_or;
     assign base0_end_sent_and_1 = base0_end_sent_and & u_builder_base0_ready;
     assign leaves0_pop = (base0_end_sent_and_1 & base0_above_m) & leaves0_empty_not;
@@ -1050,7 +1050,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves1_empty_not = ~leaves1_empty;
     assign leaves1_head_out = base1_above_m & leaves1_empty_not;
     assign base1_end_sent_not = ~base1_end_sent;
-    assign base1_at_m_or = (((base1_at_m & u_module_out_valid) & out_is_ref_not) | (base1_above_m & (leaves1_empty_not | leaves_done))) | ((choice_known & (~base1_at_m)) & (~base1_above_m));
+    assign base1_at_m_or = (((base1_at_m & u_module_out_valid) & out_is_ref_not) | (base1_above_m & leaves_done)) | ((choice_known & (~base1_at_m)) & (~base1_above_m));
     assign base1_end_sent_and = base1_end_sent_not & base1_at_m_or;
     assign base1_end_sent_and_1 = base1_end_sent_and & u_builder_base1_ready;
     assign leaves1_pop = (base1_end_sent_and_1 & base1_above_m) & leaves1_empty_not;
@@ -1067,7 +1067,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves2_empty_not = ~leaves2_empty;
     assign leaves2_head_out = base2_above_m & leaves2_empty_not;
     assign base2_end_sent_not = ~base2_end_sent;
-    assign base2_at_m_or = (((base2_at_m & u_module_out_valid) & out_is_ref_not) | (base2_above_m & (leaves2_empty_not | leaves_done))) | ((choice_known & (~base2_at_m)) & (~base2_above_m));
+    assign base2_at_m_or = (((base2_at_m & u_module_out_valid) & out_is_ref_not) | (base2_above_m & leaves_done)) | ((choice_known & (~base2_at_m)) & (~base2_above_m));
     assign base2_end_sent_and = base2_end_sent_not & base2_at_m_or;
     assign base2_end_sent_and_1 = base2_end_sent_and & u_builder_base2_ready;
     assign leaves2_pop = (base2_end_sent_and_1 & base2_above_m) & leaves2_empty_not;
@@ -1085,7 +1085,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves3_empty_not = ~leaves3_empty;
     assign leaves3_head_out = base3_above_m & leaves3_empty_not;
     assign base3_end_sent_not = ~base3_end_sent;
-    assign base3_at_m_or = (((base3_at_m & u_module_out_valid) & out_is_ref_not) | (base3_above_m & (leaves3_empty_not | leaves_done))) | ((choice_known & (~base3_at_m)) & (~base3_above_m));
+    assign base3_at_m_or = (((base3_at_m & u_module_out_valid) & out_is_ref_not) | (base3_above_m & leaves_done)) | ((choice_known & (~base3_at_m)) & (~base3_above_m));
     assign base3_end_sent_and = base3_end_sent_not & base3_at_m_or;
     assign base3_end_sent_and_1 = base3_end_sent_and & u_builder_base3_ready;
     assign leaves3_pop = (base3_end_sent_and_1 & base3_above_m) & leaves3_empty_not;
@@ -1103,7 +1103,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves4_empty_not = ~leaves4_empty;
     assign leaves4_head_out = base4_above_m & leaves4_empty_not;
     assign base4_end_sent_not = ~base4_end_sent;
-    assign base4_at_m_or = (((base4_at_m & u_module_out_valid) & out_is_ref_not) | (base4_above_m & (leaves4_empty_not | leaves_done))) | ((choice_known & (~base4_at_m)) & (~base4_above_m));
+    assign base4_at_m_or = (((base4_at_m & u_module_out_valid) & out_is_ref_not) | (base4_above_m & leaves_done)) | ((choice_known & (~base4_at_m)) & (~base4_above_m));
     assign base4_end_sent_and = base4_end_sent_not & base4_at_m_or;
     assign base4_end_sent_and_1 = base4_end_sent_and & u_builder_base4_ready;
     assign leaves4_pop = (base4_end_sent_and_1 & base4_above_m) & leaves4_empty_not;
@@ -1120,7 +1120,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves5_empty_not = ~leaves5_empty;
     assign leaves5_head_out = base5_above_m & leaves5_empty_not;
     assign base5_end_sent_not = ~base5_end_sent;
-    assign base5_at_m_or = (((base5_at_m & u_module_out_valid) & out_is_ref_not) | (base5_above_m & (leaves5_empty_not | leaves_done))) | ((choice_known & (~base5_at_m)) & (~base5_above_m));
+    assign base5_at_m_or = (((base5_at_m & u_module_out_valid) & out_is_ref_not) | (base5_above_m & leaves_done)) | ((choice_known & (~base5_at_m)) & (~base5_above_m));
     assign base5_end_sent_and = base5_end_sent_not & base5_at_m_or;
     assign base5_end_sent_and_1 = base5_end_sent_and & u_builder_base5_ready;
     assign leaves5_pop = (base5_end_sent_and_1 & base5_above_m) & leaves5_empty_not;
@@ -1138,7 +1138,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves6_empty_not = ~leaves6_empty;
     assign leaves6_head_out = base6_above_m & leaves6_empty_not;
     assign base6_end_sent_not = ~base6_end_sent;
-    assign base6_at_m_or = (((base6_at_m & u_module_out_valid) & out_is_ref_not) | (base6_above_m & (leaves6_empty_not | leaves_done))) | ((choice_known & (~base6_at_m)) & (~base6_above_m));
+    assign base6_at_m_or = (((base6_at_m & u_module_out_valid) & out_is_ref_not) | (base6_above_m & leaves_done)) | ((choice_known & (~base6_at_m)) & (~base6_above_m));
     assign base6_end_sent_and = base6_end_sent_not & base6_at_m_or;
     assign base6_end_sent_and_1 = base6_end_sent_and & u_builder_base6_ready;
     assign leaves6_pop = (base6_end_sent_and_1 & base6_above_m) & leaves6_empty_not;
@@ -1155,7 +1155,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves7_empty_not = ~leaves7_empty;
     assign leaves7_head_out = base7_above_m & leaves7_empty_not;
     assign base7_end_sent_not = ~base7_end_sent;
-    assign base7_at_m_or = (((base7_at_m & u_module_out_valid) & out_is_ref_not) | (base7_above_m & (leaves7_empty_not | leaves_done))) | ((choice_known & (~base7_at_m)) & (~base7_above_m));
+    assign base7_at_m_or = (((base7_at_m & u_module_out_valid) & out_is_ref_not) | (base7_above_m & leaves_done)) | ((choice_known & (~base7_at_m)) & (~base7_above_m));
     assign base7_end_sent_and = base7_end_sent_not & base7_at_m_or;
     assign base7_end_sent_and_1 = base7_end_sent_and & u_builder_base7_ready;
     assign leaves7_pop = (base7_end_sent_and_1 & base7_above_m) & leaves7_empty_not;
@@ -1173,7 +1173,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves8_empty_not = ~leaves8_empty;
     assign leaves8_head_out = base8_above_m & leaves8_empty_not;
     assign base8_end_sent_not = ~base8_end_sent;
-    assign base8_at_m_or = (((base8_at_m & u_module_out_valid) & out_is_ref_not) | (base8_above_m & (leaves8_empty_not | leaves_done))) | ((choice_known & (~base8_at_m)) & (~base8_above_m));
+    assign base8_at_m_or = (((base8_at_m & u_module_out_valid) & out_is_ref_not) | (base8_above_m & leaves_done)) | ((choice_known & (~base8_at_m)) & (~base8_above_m));
     assign base8_end_sent_and = base8_end_sent_not & base8_at_m_or;
     assign base8_end_sent_and_1 = base8_end_sent_and & u_builder_base8_ready;
     assign leaves8_pop = (base8_end_sent_and_1 & base8_above_m) & leaves8_empty_not;
@@ -1191,7 +1191,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves9_empty_not = ~leaves9_empty;
     assign leaves9_head_out = base9_above_m & leaves9_empty_not;
     assign base9_end_sent_not = ~base9_end_sent;
-    assign base9_at_m_or = (((base9_at_m & u_module_out_valid) & out_is_ref_not) | (base9_above_m & (leaves9_empty_not | leaves_done))) | ((choice_known & (~base9_at_m)) & (~base9_above_m));
+    assign base9_at_m_or = (((base9_at_m & u_module_out_valid) & out_is_ref_not) | (base9_above_m & leaves_done)) | ((choice_known & (~base9_at_m)) & (~base9_above_m));
     assign base9_end_sent_and = base9_end_sent_not & base9_at_m_or;
     assign base9_end_sent_and_1 = base9_end_sent_and & u_builder_base9_ready;
     assign leaves9_pop = (base9_end_sent_and_1 & base9_above_m) & leaves9_empty_not;
@@ -1208,7 +1208,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves10_empty_not = ~leaves10_empty;
     assign leaves10_head_out = base10_above_m & leaves10_empty_not;
     assign base10_end_sent_not = ~base10_end_sent;
-    assign base10_at_m_or = (((base10_at_m & u_module_out_valid) & out_is_ref_not) | (base10_above_m & (leaves10_empty_not | leaves_done))) | ((choice_known & (~base10_at_m)) & (~base10_above_m));
+    assign base10_at_m_or = (((base10_at_m & u_module_out_valid) & out_is_ref_not) | (base10_above_m & leaves_done)) | ((choice_known & (~base10_at_m)) & (~base10_above_m));
     assign base10_end_sent_and = base10_end_sent_not & base10_at_m_or;
     assign base10_end_sent_and_1 = base10_end_sent_and & u_builder_base10_ready;
     assign leaves10_pop = (base10_end_sent_and_1 & base10_above_m) & leaves10_empty_not;
@@ -1225,7 +1225,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves11_empty_not = ~leaves11_empty;
     assign leaves11_head_out = base11_above_m & leaves11_empty_not;
     assign base11_end_sent_not = ~base11_end_sent;
-    assign base11_at_m_or = (((base11_at_m & u_module_out_valid) & out_is_ref_not) | (base11_above_m & (leaves11_empty_not | leaves_done))) | ((choice_known & (~base11_at_m)) & (~base11_above_m));
+    assign base11_at_m_or = (((base11_at_m & u_module_out_valid) & out_is_ref_not) | (base11_above_m & leaves_done)) | ((choice_known & (~base11_at_m)) & (~base11_above_m));
     assign base11_end_sent_and = base11_end_sent_not & base11_at_m_or;
     assign base11_end_sent_and_1 = base11_end_sent_and & u_builder_base11_ready;
     assign leaves11_pop = (base11_end_sent_and_1 & base11_above_m) & leaves11_empty_not;
@@ -1244,7 +1244,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves12_empty_not = ~leaves12_empty;
     assign leaves12_head_out = base12_above_m & leaves12_empty_not;
     assign base12_end_sent_not = ~base12_end_sent;
-    assign base12_at_m_or = (((base12_at_m & u_module_out_valid) & out_is_ref_not) | (base12_above_m & (leaves12_empty_not | leaves_done))) | ((choice_known & (~base12_at_m)) & (~base12_above_m));
+    assign base12_at_m_or = (((base12_at_m & u_module_out_valid) & out_is_ref_not) | (base12_above_m & leaves_done)) | ((choice_known & (~base12_at_m)) & (~base12_above_m));
     assign base12_end_sent_and = base12_end_sent_not & base12_at_m_or;
     assign base12_end_sent_and_1 = base12_end_sent_and & u_builder_base12_ready;
     assign leaves12_pop = (base12_end_sent_and_1 & base12_above_m) & leaves12_empty_not;
@@ -1261,7 +1261,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves13_empty_not = ~leaves13_empty;
     assign leaves13_head_out = base13_above_m & leaves13_empty_not;
     assign base13_end_sent_not = ~base13_end_sent;
-    assign base13_at_m_or = (((base13_at_m & u_module_out_valid) & out_is_ref_not) | (base13_above_m & (leaves13_empty_not | leaves_done))) | ((choice_known & (~base13_at_m)) & (~base13_above_m));
+    assign base13_at_m_or = (((base13_at_m & u_module_out_valid) & out_is_ref_not) | (base13_above_m & leaves_done)) | ((choice_known & (~base13_at_m)) & (~base13_above_m));
     assign base13_end_sent_and = base13_end_sent_not & base13_at_m_or;
     assign base13_end_sent_and_1 = base13_end_sent_and & u_builder_base13_ready;
     assign leaves13_pop = (base13_end_sent_and_1 & base13_above_m) & leaves13_empty_not;
@@ -1278,7 +1278,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves14_empty_not = ~leaves14_empty;
     assign leaves14_head_out = base14_above_m & leaves14_empty_not;
     assign base14_end_sent_not = ~base14_end_sent;
-    assign base14_at_m_or = (((base14_at_m & u_module_out_valid) & out_is_ref_not) | (base14_above_m & (leaves14_empty_not | leaves_done))) | ((choice_known & (~base14_at_m)) & (~base14_above_m));
+    assign base14_at_m_or = (((base14_at_m & u_module_out_valid) & out_is_ref_not) | (base14_above_m & leaves_done)) | ((choice_known & (~base14_at_m)) & (~base14_above_m));
     assign base14_end_sent_and = base14_end_sent_not & base14_at_m_or;
     assign base14_end_sent_and_1 = base14_end_sent_and & u_builder_base14_ready;
     assign leaves14_pop = (base14_end_sent_and_1 & base14_above_m) & leaves14_empty_not;
@@ -1296,7 +1296,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign leaves15_empty_not = ~leaves15_empty;
     assign leaves15_head_out = base15_above_m & leaves15_empty_not;
     assign base15_end_sent_not = ~base15_end_sent;
-    assign base15_at_m_or = (((base15_at_m & u_module_out_valid) & out_is_ref_not) | (base15_above_m & (leaves15_empty_not | leaves_done))) | ((choice_known & (~base15_at_m)) & (~base15_above_m));
+    assign base15_at_m_or = (((base15_at_m & u_module_out_valid) & out_is_ref_not) | (base15_above_m & leaves_done)) | ((choice_known & (~base15_at_m)) & (~base15_above_m));
     assign base15_end_sent_and = base15_end_sent_not & base15_at_m_or;
     assign base15_end_sent_and_1 = base15_end_sent_and & u_builder_base15_ready;
     assign leaves15_pop = (base15_end_sent_and_1 & base15_above_m) & leaves15_empty_not;
@@ -1966,9 +1966,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                     leaf_overflow_q <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:358
                 end
                 if (((u_module_out_valid & merging_and) & (u_module_kind == 2'd0)) & u_module_err_1) begin
-                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:417
+                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:415
                 end else if (cfg_fire) begin
-                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:417
+                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:415
                 end
             end
             if (leaves_all_valid & leaves_all_end) begin
@@ -1982,9 +1982,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:350
             end
             if (base0_end_sent_and_1 & (base0_at_m ? out_is_end : (base0_above_m ? leaves0_end : 1'b1))) begin
-                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (header_fire) begin
                 leaves0_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
@@ -2118,84 +2118,84 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 end
             end
             if (base1_end_sent_and_1 & (base1_at_m ? out_is_end : (base1_above_m ? leaves1_end : 1'b1))) begin
-                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base2_end_sent_and_1 & (base2_at_m ? out_is_end : (base2_above_m ? leaves2_end : 1'b1))) begin
-                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base3_end_sent_and_1 & (base3_at_m ? out_is_end : (base3_above_m ? leaves3_end : 1'b1))) begin
-                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base4_end_sent_and_1 & (base4_at_m ? out_is_end : (base4_above_m ? leaves4_end : 1'b1))) begin
-                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base5_end_sent_and_1 & (base5_at_m ? out_is_end : (base5_above_m ? leaves5_end : 1'b1))) begin
-                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base6_end_sent_and_1 & (base6_at_m ? out_is_end : (base6_above_m ? leaves6_end : 1'b1))) begin
-                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base7_end_sent_and_1 & (base7_at_m ? out_is_end : (base7_above_m ? leaves7_end : 1'b1))) begin
-                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base8_end_sent_and_1 & (base8_at_m ? out_is_end : (base8_above_m ? leaves8_end : 1'b1))) begin
-                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base9_end_sent_and_1 & (base9_at_m ? out_is_end : (base9_above_m ? leaves9_end : 1'b1))) begin
-                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
+                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base10_end_sent_and_1 & (base10_at_m ? out_is_end : (base10_above_m ? leaves10_end : 1'b1))) begin
-                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base11_end_sent_and_1 & (base11_at_m ? out_is_end : (base11_above_m ? leaves11_end : 1'b1))) begin
-                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base12_end_sent_and_1 & (base12_at_m ? out_is_end : (base12_above_m ? leaves12_end : 1'b1))) begin
-                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base13_end_sent_and_1 & (base13_at_m ? out_is_end : (base13_above_m ? leaves13_end : 1'b1))) begin
-                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base14_end_sent_and_1 & (base14_at_m ? out_is_end : (base14_above_m ? leaves14_end : 1'b1))) begin
-                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if (base15_end_sent_and_1 & (base15_at_m ? out_is_end : (base15_above_m ? leaves15_end : 1'b1))) begin
-                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             if ((base16_end_sent_and & u_builder_base16_ready) & (base16_at_m ? out_is_end : 1'b1)) begin
-                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end else if (header_fire) begin
-                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
+                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
             end
             done_pulse <= header_fire;
         end

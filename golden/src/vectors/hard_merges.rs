@@ -28,7 +28,6 @@ use glam::{DVec3, Vec3};
 #[cfg(doc)]
 use super::streams::Merges;
 use crate::merge::merge_module::MergeDesign;
-use crate::merge::MergeMode;
 
 fn golden_err(what: impl std::fmt::Display) -> String {
     format!("hard merges: {what}")
@@ -41,12 +40,12 @@ type Result<T> = std::result::Result<T, String>;
 pub struct HardMerges {
     /// In the order a run sends them.
     pub merges: Vec<MergerTransaction>,
-    /// Merges left out because what a FIFO drops depends on timing or is
-    /// not modelled ([`MergerTransaction::exact`]).
+    /// Merges left out because a FIFO drops what golden does not model
+    /// ([`MergerTransaction::exact`]: per-node mode's nodes).
     pub overflowing: usize,
     /// Merges whose leaves overflow a leaf FIFO (`leaf_overflow`), expected
     /// bit for bit with the leaves the FIFOs keep
-    /// ([`kept_leaves`](crate::merge::merger::kept_leaves)): per-node mode's.
+    /// ([`kept_leaves`](crate::merge::merger::kept_leaves)).
     pub leaf_overflows: usize,
     /// Merges with an input of several roots.
     pub several_root_inputs: usize,
@@ -81,11 +80,11 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`), on
-/// the first case of the most inputs; and in per-node mode a flood of
-/// leaves ([`leaf_flood`]) that overflows the leaf FIFO of its LOD. Merges of more
-/// than `k` inputs, and those the RTL does not write bit for bit whatever
-/// the timing ([`MergerTransaction::exact`]: every overflow but per-node
-/// mode's leaves), are left out.
+/// the first case of the most inputs; and a flood of leaves ([`leaf_flood`])
+/// that overflows the leaf FIFOs of five LODs. Merges of more than `k`
+/// inputs, and those golden does not model bit for bit
+/// ([`MergerTransaction::exact`]: per-node mode's FIFOs dropping nodes),
+/// are left out.
 pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     let p = &d.params;
     let k = d.inputs;
@@ -113,11 +112,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
                 .any(|i| store.get(*i).is_some_and(|h| h.root_count > 1)) as usize;
         out.merges.push(tx);
     }
-    // The level modes' merge of the flood is not exact (`tx.exact`).
-    let flood = match d.mode {
-        MergeMode::PerNode { .. } => leaf_flood(p, sizes.leaf_bits)?,
-        _ => None,
-    };
+    let flood = leaf_flood(p, sizes.leaf_bits)?;
     for (store, table, ids) in deep_cases(p)?
         .iter()
         .chain(&flood)
@@ -428,12 +423,12 @@ fn leaf_ladder(p: &Params) -> Result<RealCase> {
 }
 
 /// The largest `leaf_bits` [`leaf_flood`] floods: `2^8 + 2` triangles.
-const FLOOD_MOST_LEAF_BITS: u32 = 8;
+pub const FLOOD_MOST_LEAF_BITS: u32 = 8;
 
 /// The lattices of [`leaf_flood`], each half the scale of the one before:
 /// leaves at as many consecutive LODs (at D = 8 and `leaf_bits` 4 or 6, LODs
 /// 3 to 7: every LOD whose voxels outnumber a FIFO, above the tiny soup's).
-const FLOOD_LATTICES: usize = 5;
+pub const FLOOD_LATTICES: usize = 5;
 
 /// A flood of leaves: [`FLOOD_LATTICES`] lattices of `2^leaf_bits + 2`
 /// triangles each, the triangles of a lattice of one size and each a leaf of
@@ -442,7 +437,7 @@ const FLOOD_LATTICES: usize = 5;
 /// below them and the leaf FIFO of each lattice's LOD receives two leaves
 /// more than it holds (`leaf_overflow`; the FIFO keeps the first
 /// `2^leaf_bits`). None when `leaf_bits` is above [`FLOOD_MOST_LEAF_BITS`].
-fn leaf_flood(p: &Params, leaf_bits: u32) -> Result<Option<RealCase>> {
+pub fn leaf_flood(p: &Params, leaf_bits: u32) -> Result<Option<RealCase>> {
     if leaf_bits > FLOOD_MOST_LEAF_BITS {
         return Ok(None);
     }
@@ -779,14 +774,13 @@ fn check_cfg_errors(
 mod tests {
     use super::*;
     use crate::merge::merge_level::BaseNode;
+    use crate::merge::MergeMode;
 
     /// The flood sends its LOD's leaf FIFO two leaves more than it holds, in
     /// a level mode and in per-node mode, at the default and at the long
     /// runs' small configuration: the header flags it, the base keeps the
     /// first `2^leaf_bits` (then the module's nodes, all deeper), and the
-    /// writer writes the merge without error. Per-node mode's merge is
-    /// exact; the level mode's is not (its builder may read the FIFO before
-    /// the last leaf).
+    /// writer writes the merge without error, in both modes exactly.
     #[test]
     fn the_leaf_flood_overflows_its_fifo_by_two_leaves() {
         let small = Params::new(8, 0, 12, 3).unwrap();
@@ -820,8 +814,7 @@ mod tests {
                         "{at}: {lods:?} {counts:?}"
                     );
                     assert!(tx.header.leaf_overflow, "{at}");
-                    let per_node = matches!(mode, MergeMode::PerNode { .. });
-                    assert_eq!(tx.exact, per_node, "{at}");
+                    assert!(tx.exact, "{at}");
                     let kept: Vec<&BaseNode> = per_lod
                         .values()
                         .flat_map(|l| l[..held].iter().copied())

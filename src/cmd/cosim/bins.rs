@@ -57,8 +57,8 @@ pub(super) fn merge_level(top: &str) {
 /// `merger.inputs.<n>`: merges of every input count from 1 to k;
 /// `merger.<outcome>`: the merger's outcomes besides a plain merge (a
 /// refused range, leaves above the merging level through the leaf FIFOs,
-/// a leaf FIFO overflowing (`leaf_overflow`: per-node mode's hard leaf
-/// flood, which golden expects with the leaves the FIFOs keep), a materialized
+/// a leaf FIFO overflowing (`leaf_overflow`: the hard merges' leaf flood,
+/// which golden expects with the leaves the FIFOs keep), a materialized
 /// root); `merger.fetch_err.<code>`: every fetcher error code
 /// a merge can expect bit for bit (`golden::vectors::hard_merges::CFG_ERRORS`,
 /// whose doc says why the codes met mid-walk cannot be); and
@@ -67,11 +67,9 @@ pub(super) fn merge_level(top: &str) {
 /// merge reaches bit for bit.
 ///
 /// No bin, because no merge golden can expect bit for bit reaches them:
-/// `leaf_overflow` in the level modes (whether a leaf finds its FIFO full
-/// depends on when the builder reads it, docs/hardware.md 8.15 step 4) and
-/// from a node of per-node mode's module dropped at a full FIFO (its
-/// references still reach the writer, a merged hierarchy golden does not
-/// model), so the hard merges leave such merges out; `count_overflow` (a created
+/// `leaf_overflow` from a node of per-node mode's module dropped at a full
+/// FIFO (its references still reach the writer, a merged hierarchy golden
+/// does not model, so the hard merges leave such merges out); `count_overflow` (a created
 /// node's reference count at `2^I`: `merger_transaction` refuses the merge,
 /// `module_base`); the writer's `LEVEL_OVERFLOW` (with `C < I` a builder
 /// overflow shows first as `CAPACITY`, so only a corrupt child box or count

@@ -294,17 +294,12 @@ pub struct MergerTransaction {
     /// the module's nodes.
     pub base: Vec<BaseNode>,
     /// Whether the RTL writes this merge bit for bit whatever the timing of
-    /// its streams. False when a FIFO overflows ([`MergerHeader::leaf_overflow`])
-    /// and what it drops depends on timing or is not modelled:
-    /// - level modes, leaves: the builder may read a leaf FIFO before the
-    ///   last leaf is pushed (an input whose walk ends above the merging
-    ///   level sends its `End` there while its leaves still flow), so
-    ///   whether a leaf is dropped depends on the timing;
-    /// - per-node mode, the module's nodes: a created node may be dropped
-    ///   while its references still reach the writer's `crefs`, a merged
-    ///   hierarchy golden does not model (its `writer` is of every node).
-    ///
-    /// Per-node mode's dropped leaves are modelled ([`kept_leaves`]).
+    /// its streams: false when per-node mode's FIFO of a LOD receives more of
+    /// the module's nodes than it holds ([`MergerHeader::leaf_overflow`]),
+    /// since a dropped created node's references still reach the writer's
+    /// `crefs`, a merged hierarchy golden does not model (its `writer` is of
+    /// every node). Dropped leaves are modelled in every mode
+    /// ([`kept_leaves`]).
     pub exact: bool,
     /// The writer's run (its `builder` is the upper builder's run).
     pub writer: WriterTransaction,
@@ -463,12 +458,12 @@ pub fn merge_leaves(fetch: &[FetchTransaction]) -> Vec<BaseNode> {
     all.iter().map(|(n, _)| BaseNode::reused(n)).collect()
 }
 
-/// The leaves per-node mode's FIFOs keep: the first `2^leaf_bits` of each
-/// LOD, in the order of `leaves` (the leaf merge's). A leaf pushed into a
-/// full FIFO is dropped (8.15 step 4), and in per-node mode the builder
-/// reads no FIFO before the module is done and the leaves are complete, so
-/// what a FIFO keeps is a function of the data. The level modes' builder
-/// may read a leaf FIFO earlier ([`MergerTransaction::exact`]).
+/// The leaves the leaf FIFOs keep: the first `2^leaf_bits` of each LOD, in
+/// the order of `leaves` (the leaf merge's). A leaf pushed into a full FIFO
+/// is dropped (8.15 step 4), and no FIFO is read before the leaves are
+/// complete (the level modes' `base{d}` above the merging level waits for
+/// them; per-node mode's builder sees nothing before the module is done and
+/// the leaves are complete), so what a FIFO keeps is a function of the data.
 pub fn kept_leaves(leaves: &[BaseNode], leaf_bits: u32) -> Vec<BaseNode> {
     let mut per_lod = std::collections::BTreeMap::<u8, u64>::new();
     leaves
@@ -679,20 +674,15 @@ pub fn merger_transaction_in_range(
     };
     // Per-node mode's FIFOs hold the module's nodes as well (SPEC 8.15), at
     // LODs from `lo` down, where no leaf is.
-    let leaves_over = leaf_overflow(&leaves, sizes.leaf_bits);
-    let (exact, nodes_over) = match &module {
-        ModulePass::Level(_) => (!leaves_over, false),
-        ModulePass::PerNode(_) => {
-            let over = leaf_overflow(&nodes, sizes.leaf_bits);
-            (!over, over)
-        }
-    };
+    let nodes_over =
+        matches!(module, ModulePass::PerNode(_)) && leaf_overflow(&nodes, sizes.leaf_bits);
+    let exact = !nodes_over;
     let mut base = kept_leaves(&leaves, sizes.leaf_bits);
     base.extend(nodes);
     let writer = writer_transaction(&base, &hs, &p, sizes.capacity_bits, out_id)?;
     let header = MergerHeader {
         writer: writer.header,
-        leaf_overflow: leaves_over || nodes_over,
+        leaf_overflow: leaf_overflow(&leaves, sizes.leaf_bits) || nodes_over,
         count_overflow: false,
         fetch_err: fetch_err::NONE,
         fetch_rank: 0,

@@ -363,7 +363,7 @@ fn route_out<'m>(
         let ready = builder.output(&format!("base{d}_ready"));
         let at_m = (merging & level.eq(dl)).name(&format!("base{d}_at_m"));
         let (valid, data, is_end) = if d < dmax {
-            // The FIFO of LOD d.
+            // The FIFO of LOD d, read once the leaves are complete (8.15 step 4).
             let q = DropFifo::new(m, &format!("leaves{d}"), &format!("leaves{d}"), word_w, cb);
             let (empty, full) = (q.empty(), q.full());
             let push = (take_leaf & best_lod.eq(dl)).name(&format!("leaves{d}_push"));
@@ -378,10 +378,8 @@ fn route_out<'m>(
             ]);
             let fifo_end = (empty & leaves_done).name(&format!("leaves{d}_end"));
             let from_fifo = (above & !empty).name(&format!("leaves{d}_head_out"));
-            let valid = !bsent
-                & (at_m & mo_valid & !mo_ref
-                    | above & (!empty | leaves_done)
-                    | known & !at_m & !above);
+            let valid =
+                !bsent & (at_m & mo_valid & !mo_ref | above & leaves_done | known & !at_m & !above);
             let data = at_m.mux(mo_beat, from_fifo.mux(leaf_beat, end_beat));
             let is_end = at_m.mux(mo_end, above.mux(fifo_end, one));
             let pop = (valid & ready & above & !empty).name(&format!("leaves{d}_pop"));

@@ -1083,10 +1083,55 @@ mod tests {
                     .max()
                     .unwrap_or(0);
                 assert_eq!(tx.header.leaf_overflow, most > 1 << leaf_bits);
+                assert!(
+                    tx.exact,
+                    "a level mode drops leaves only, which golden models"
+                );
                 flagged += tx.header.leaf_overflow as usize;
             }
         }
         assert!(flagged > 0);
+    }
+
+    /// Per-node mode: a merge whose module sends some LOD more nodes than
+    /// its FIFO holds is flagged and not exact (golden does not model the
+    /// dropped node's references in `crefs`); one whose leaves alone
+    /// overflow is exact, its base holding the first `2^leaf_bits` leaves
+    /// of each LOD.
+    #[test]
+    fn per_node_dropped_nodes_make_a_merge_inexact() {
+        let p = Params::default();
+        let mode = MergeMode::PerNode { num: 1, den: 2 };
+        let (mut inexact, mut exact_over) = (0, 0);
+        for (store, table, ids) in real_cases(&p).expect("the real cases build") {
+            for leaf_bits in [0, 1, 2] {
+                let sizes = MergerSizes {
+                    leaf_bits,
+                    ..MergerSizes::new(&p)
+                };
+                let tx = merger_transaction(&store, &table, &ids, mode, 9, 4, sizes).unwrap();
+                let count = |lods: &mut std::collections::BTreeMap<u8, usize>, n: &BaseNode| {
+                    *lods.entry(n.record.voxel.lod).or_default() += 1;
+                };
+                let mut leaves = std::collections::BTreeMap::new();
+                tx.leaves.iter().for_each(|n| count(&mut leaves, n));
+                let mut base = std::collections::BTreeMap::new();
+                tx.base.iter().for_each(|n| count(&mut base, n));
+                let held = 1usize << leaf_bits;
+                // The base: at most `held` leaves of a LOD, every node.
+                let nodes: usize =
+                    tx.base.len() - leaves.values().map(|&c| c.min(held)).sum::<usize>();
+                let nodes_over = base
+                    .iter()
+                    .any(|(lod, &c)| c - leaves.get(lod).map_or(0, |&l| l.min(held)) > held);
+                assert_eq!(tx.exact, !nodes_over, "L = {leaf_bits}, {nodes} nodes");
+                let leaves_over = leaves.values().any(|&c| c > held);
+                assert_eq!(tx.header.leaf_overflow, leaves_over || nodes_over);
+                inexact += !tx.exact as usize;
+                exact_over += (tx.exact && leaves_over) as usize;
+            }
+        }
+        assert!(inexact > 0 && exact_over > 0, "{inexact} {exact_over}");
     }
 
     #[test]

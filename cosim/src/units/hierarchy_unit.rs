@@ -201,15 +201,15 @@ pub fn case_of(
 
 /// The cases of a run in order: with [`Merges::Hard`], first golden's
 /// named hard cases of valid inputs (`hard_merges::hard_cases`: real
-/// merges, several and sixteen roots, the leaf ladder, the deep tops;
-/// those whose leaves overflow the leaf FIFOs left out), then random
-/// merges of `kind`.
+/// merges, several and sixteen roots, the leaf ladder, the deep tops) and
+/// the leaf flood (`hard_merges::leaf_flood`), those golden does not model
+/// bit for bit left out (`MergerTransaction::exact`: per-node mode's FIFOs
+/// dropping nodes), then random merges of `kind`.
 pub struct Draw {
     rng: SplitMix64,
     kind: Merges,
     named: std::collections::VecDeque<golden::merge::stimulus::RealCase>,
-    /// Named cases drawn so far (those left out for leaf overflow not
-    /// counted).
+    /// Named cases drawn so far (those left out not counted).
     pub named_drawn: u64,
 }
 
@@ -217,9 +217,13 @@ impl Draw {
     /// The draws of a run of `kind` from `seed` for `c`.
     pub fn new(c: &HierarchyUnitConfig, seed: u64, kind: Merges) -> Result<Draw> {
         let named = match kind {
-            Merges::Hard => golden::vectors::hard_merges::hard_cases(&c.merger.design)
-                .map_err(design_err)?
-                .into(),
+            Merges::Hard => {
+                use golden::vectors::hard_merges::{hard_cases, leaf_flood};
+                let mut cases = hard_cases(&c.merger.design).map_err(design_err)?;
+                let p = &c.merger.design.params;
+                cases.extend(leaf_flood(p, c.merger.sizes.leaf_bits).map_err(design_err)?);
+                cases.into()
+            }
             Merges::Random => Default::default(),
         };
         Ok(Draw {
@@ -242,7 +246,7 @@ impl Draw {
             // must not stay in the model's table either.
             let before = model.clone();
             let case = case_of(&mut self.rng, c, model, (&store, &table, &ids), out_id)?;
-            if !case.tx.header.leaf_overflow {
+            if case.tx.exact {
                 self.named_drawn += 1;
                 return Ok(case);
             }
@@ -666,14 +670,21 @@ impl HierarchySim {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rtl_gen::merge::MergerConfig;
+    use rtl_gen::merge::{MergeConfig, MergerConfig};
 
     /// What the draws record on `det_out` is what a fresh table gives the
-    /// commands sent, in order: a named case left out (its leaves overflow
-    /// the leaf FIFOs) leaves no table write behind in the model.
+    /// commands sent, in order: a named case left out (per-node mode, FIFOs
+    /// of 2 entries, which drop the module's nodes) leaves no table write
+    /// behind in the model.
     #[test]
     fn the_draws_record_what_the_sent_commands_determine() {
-        let c = HierarchyUnitConfig::new(MergerConfig::new(Default::default()));
+        let design = MergeConfig {
+            mode: golden::merge::MergeMode::PerNode { num: 1, den: 2 },
+            ..Default::default()
+        };
+        let mut merger = MergerConfig::new(design);
+        merger.sizes.leaf_bits = 1;
+        let c = HierarchyUnitConfig::new(merger);
         let named = golden::vectors::hard_merges::hard_cases(&c.merger.design).unwrap();
         let mut model = TranslateModel::new(c.table).unwrap();
         let mut replay = TranslateModel::new(c.table).unwrap();
@@ -686,7 +697,7 @@ mod tests {
         }
         assert!(
             draw.named_drawn < named.len() as u64,
-            "a named case is left out at the default, so this checks its writes are undone"
+            "a named case is left out, so this checks its writes are undone"
         );
     }
 }

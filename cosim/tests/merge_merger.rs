@@ -115,11 +115,12 @@ fn streams(
 }
 
 /// The hard merges (`golden::vectors::hard_merges`: real merges, an input
-/// of several roots, a fetcher error, refused ranges) through the
-/// configuration's mode; this file's sizes hold every real merge's leaves.
+/// of several roots, a fetcher error, refused ranges, the leaf flood)
+/// through the configuration's mode; at this file's sizes golden models
+/// every one of them (none left out as inexact).
 fn real_merges(c: &MergerConfig) -> (Vec<MergerTransaction>, usize) {
     let h = hard_merges(&c.design, c.sizes).expect("the hard merges");
-    assert_eq!(h.overflowing, 0, "the leaf FIFOs hold the real merges");
+    assert_eq!(h.overflowing, 0, "no hard merge left out as inexact");
     (h.merges, h.several_root_inputs)
 }
 

@@ -422,7 +422,8 @@ fn leaf_ladder(p: &Params) -> Result<RealCase> {
     Ok((store, table, vec![1, 2]))
 }
 
-/// The largest `leaf_bits` [`leaf_flood`] floods: `2^8 + 2` triangles.
+/// The largest `leaf_bits` [`leaf_flood`] floods: `2^8 + 2` triangles a
+/// lattice.
 pub const FLOOD_MOST_LEAF_BITS: u32 = 8;
 
 /// The lattices of [`leaf_flood`], each half the scale of the one before:
@@ -776,13 +777,14 @@ mod tests {
     use crate::merge::merge_level::BaseNode;
     use crate::merge::MergeMode;
 
-    /// The flood sends its LOD's leaf FIFO two leaves more than it holds, in
-    /// a level mode and in per-node mode, at the default and at the long
-    /// runs' small configuration: the header flags it, the base keeps the
-    /// first `2^leaf_bits` (then the module's nodes, all deeper), and the
-    /// writer writes the merge without error, in both modes exactly.
+    /// The flood sends the leaf FIFOs of five consecutive LODs, from LOD 3
+    /// down, two leaves more than each holds, in a level mode and in per-node
+    /// mode, at the default and at the long runs' small configuration: the
+    /// header flags it, the base keeps the first `2^leaf_bits` of each LOD
+    /// (then the module's nodes, all deeper), the merge is exact, and the
+    /// writer writes it without error.
     #[test]
-    fn the_leaf_flood_overflows_its_fifo_by_two_leaves() {
+    fn the_leaf_flood_overflows_five_fifos_by_two_leaves() {
         let small = Params::new(8, 0, 12, 3).unwrap();
         for p in [Params::default(), small] {
             for leaf_bits in [4, 6] {

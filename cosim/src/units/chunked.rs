@@ -254,7 +254,7 @@ impl ChunkTotals {
 /// Cycles without a handshake at any port before a chunked run is called
 /// hung. The merger top's record writer takes a merge's level beats into
 /// its buffers before it writes a record, with no port moving meanwhile:
-/// the per-node hard merges' leaf flood (1,290 leaves at the default with
+/// the hard merges' leaf flood (1,290 leaves at the default with
 /// `leaf_bits` 8) keeps it busy for more than 1,000 cycles.
 pub const WATCHDOG_CYCLES: u64 = 10_000;
 

@@ -202,7 +202,7 @@ pub fn case_of(
 /// The cases of a run in order: with [`Merges::Hard`], first golden's
 /// named hard cases of valid inputs (`hard_merges::hard_cases`: real
 /// merges, several and sixteen roots, the leaf ladder, the deep tops) and
-/// the leaf flood (`hard_merges::leaf_flood`), those golden does not model
+/// the leaf floods (`hard_merges::leaf_flood`, `flood_of_two`), those golden does not model
 /// bit for bit left out (`MergerTransaction::exact`: per-node mode's FIFOs
 /// dropping nodes), then random merges of `kind`.
 pub struct Draw {
@@ -218,10 +218,11 @@ impl Draw {
     pub fn new(c: &HierarchyUnitConfig, seed: u64, kind: Merges) -> Result<Draw> {
         let named = match kind {
             Merges::Hard => {
-                use golden::vectors::hard_merges::{hard_cases, leaf_flood};
+                use golden::vectors::hard_merges::{flood_of_two, hard_cases, leaf_flood};
                 let mut cases = hard_cases(&c.merger.design).map_err(design_err)?;
                 let p = &c.merger.design.params;
                 cases.extend(leaf_flood(p, c.merger.sizes.leaf_bits).map_err(design_err)?);
+                cases.push(flood_of_two(p).map_err(design_err)?);
                 cases.into()
             }
             Merges::Random => Default::default(),

@@ -78,10 +78,12 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// with indices near `2^I`, three merges of two inputs under LOD-0 roots
 /// (the merged top at LOD 0), the deep tops and the deep clusters, each
 /// through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
-/// input's `cfg` makes its fetcher refuse it; and two bad ranges from
+/// input's `cfg` makes its fetcher refuse it, and one whose first input's
+/// entry is invalid; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`), on
 /// the first case of the most inputs; and a flood of leaves ([`leaf_flood`])
-/// that overflows the leaf FIFOs of five LODs. Merges of more than `k`
+/// that overflows the leaf FIFOs of five LODs, and one from two inputs
+/// ([`flood_of_two`]) at LOD 2. Merges of more than `k`
 /// inputs, and those golden does not model bit for bit
 /// ([`MergerTransaction::exact`]: per-node mode's FIFOs dropping nodes),
 /// are left out.
@@ -113,9 +115,10 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
         out.merges.push(tx);
     }
     let flood = leaf_flood(p, sizes.leaf_bits)?;
+    let floods = flood.into_iter().chain([flood_of_two(p)?]);
     for (store, table, ids) in deep_cases(p)?
         .iter()
-        .chain(&flood)
+        .chain(&floods.collect::<Vec<_>>())
         .filter(|c| c.2.len() <= k)
     {
         let tx =
@@ -127,9 +130,13 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
             out.merges.push(tx);
         }
     }
-    for code in CFG_ERRORS.into_iter().rev() {
+    // Each code on the last input, and an invalid entry on the first
+    // (`fetch_rank` 0).
+    let errors = CFG_ERRORS.into_iter().map(|code| (code, usize::MAX));
+    for (code, rank) in errors.chain([(fetch_err::ENTRY, 0)]).rev() {
         for (store, table, ids) in &cases {
-            if let Some(tx) = cfg_error_merge(d, sizes, store, table, ids, code)? {
+            let rank = rank.min(ids.len().saturating_sub(1));
+            if let Some(tx) = cfg_error_merge(d, sizes, store, table, ids, (code, rank))? {
                 out.merges.insert(1.min(out.merges.len()), tx);
                 break;
             }
@@ -479,6 +486,54 @@ pub fn leaf_flood(p: &Params, leaf_bits: u32) -> Result<Option<RealCase>> {
     case_of(p, vec![(lattices, Translation::zero(top)), (tiny, placed)]).map(Some)
 }
 
+/// The LOD both inputs of [`flood_of_two`] flood: the first of more voxels
+/// (64) than the leaf FIFOs of the long runs' small configuration hold
+/// (`2^6`) whose leaves one input alone cannot overflow.
+pub const FLOOD_OF_TWO_LOD: u8 = 2;
+
+/// Leaves each input of [`flood_of_two`] brings to LOD
+/// [`FLOOD_OF_TWO_LOD`]: three layers of its 4 x 4 voxels.
+pub const FLOOD_OF_TWO_LEAVES: usize = 48;
+
+/// A flood of one LOD's leaf FIFO by two inputs, where [`leaf_flood`]'s one
+/// input cannot: at LOD [`FLOOD_OF_TWO_LOD`] (64 voxels), one input brings
+/// at most 64 leaves, so a FIFO of `2^6` overflows only from both. Each
+/// input is a lattice of [`FLOOD_OF_TWO_LEAVES`] triangles, each a leaf of
+/// its own LOD-2 voxel (the first input's in the voxel layers `z` 0 to 2,
+/// the second's `z` 1 to 3), and a tiny triangle at the same place in
+/// both, so the two inputs share the voxels of every LOD below its, the
+/// merging level lies there, and the 96 leaves above it enter LOD 2's FIFO.
+/// Both are built on one grid (the unit cube), untranslated.
+pub fn flood_of_two(p: &Params) -> Result<RealCase> {
+    let edge = 0.5f32.powi(FLOOD_OF_TWO_LOD as i32);
+    let input = |id: u8, z0: usize| -> Result<(Hierarchy, Translation)> {
+        let mut m = Mesh::default();
+        for i in 0..FLOOD_OF_TWO_LEAVES {
+            let (x, y, z) = (i % 4, i / 4 % 4, z0 + i / 16);
+            // As the leaf flood's: 0.6 of a voxel, 0.2 from its corner.
+            let c = Vec3::new(x as f32, y as f32, z as f32) * edge + Vec3::splat(0.2 * edge);
+            push_triangle(
+                &mut m,
+                c,
+                c + Vec3::new(0.6 * edge, 0.0, 0.0),
+                c + Vec3::new(0.0, 0.6 * edge, 0.3 * edge),
+            );
+        }
+        // Near the high corner of a voxel, away from its lattice triangle.
+        let t = Vec3::splat(0.95 * edge);
+        push_triangle(
+            &mut m,
+            t,
+            t + Vec3::new(0.001, 0.0, 0.0),
+            t + Vec3::new(0.0, 0.001, 0.0),
+        );
+        let h = build(&m, &GridMap::fit(Vec3::ZERO, Vec3::ONE, p), p, id).map_err(golden_err)?;
+        let top = h.top_lod;
+        Ok((h, Translation::zero(top)))
+    };
+    case_of(p, vec![input(1, 0)?, input(2, 1)?])
+}
+
 /// Triangle counts of [`depth_first_store`]'s dense input, largest first:
 /// the first whose records `I` can number is taken (1,200 gives about
 /// 2,600 records, which at `I = 12` reach index bit 11).
@@ -666,15 +721,16 @@ impl DepthFirst<'_> {
     }
 }
 
-/// A merge whose last input's `cfg` makes its fetcher refuse it with
-/// `code` (one of [`CFG_ERRORS`]): an invalid translation entry, a
+/// A merge whose input of rank `rank` has a `cfg` that makes its fetcher
+/// refuse it with `code` (one of [`CFG_ERRORS`]): an invalid translation entry, a
 /// `root_count` of 0, or one more root than the sorter holds. Its fetcher
 /// answers every command with an error beat (8.13, no store read), which
 /// the glue passes on as that input's `End`, so the rest is the merge of
-/// the other inputs over the same `(lo, hi)` with the rank left empty; the
-/// header names the error and the input (docs/hardware.md, the merger's
+/// the other inputs over the same `(lo, hi)` with the rank left empty (a
+/// rank orders only ties between inputs, and the others keep their order);
+/// the header names the error and the input (docs/hardware.md, the merger's
 /// fetcher errors). `None` when the case has one input or more than `k`,
-/// when the other inputs' leaves overflow the leaf FIFOs, or when its last
+/// when the other inputs' leaves overflow the leaf FIFOs, or when the
 /// input cannot claim that many roots.
 fn cfg_error_merge(
     d: &MergeDesign,
@@ -682,20 +738,24 @@ fn cfg_error_merge(
     store: &HierarchyStore,
     table: &TranslationTable,
     ids: &[u8],
-    code: u64,
+    (code, rank): (u64, usize),
 ) -> Result<Option<MergerTransaction>> {
     let p = &d.params;
     let n = ids.len();
-    if n < 2 || n > d.inputs {
+    if n < 2 || n > d.inputs || rank >= n {
         return Ok(None);
     }
     let hs: Vec<&Hierarchy> = ids.iter().filter_map(|i| store.get(*i)).collect();
+    if hs.len() != n {
+        return Ok(None);
+    }
     let range = candidate_range(&hs);
     let out_id = out_id(p);
+    let others: Vec<u8> = (0..n).filter(|&i| i != rank).map(|i| ids[i]).collect();
     let Ok(mut tx) = merger_transaction_in_range(
         store,
         table,
-        &ids[..n - 1],
+        &others,
         d.mode,
         out_id,
         d.inputs,
@@ -710,8 +770,8 @@ fn cfg_error_merge(
         return Ok(None);
     }
     // The `cfg` software sends for the input; the store keeps its records.
-    let mut broken = hs[n - 1].clone();
-    let t = table.get(ids[n - 1] as u32).ok().flatten();
+    let mut broken = hs[rank].clone();
+    let t = table.get(ids[rank] as u32).ok().flatten();
     let t = match code {
         fetch_err::ENTRY => None,
         fetch_err::ROOT_COUNT => {
@@ -727,7 +787,9 @@ fn cfg_error_merge(
             t
         }
     };
-    tx.cfg.inputs.push(FetchCfg::of(&broken, t.as_ref()));
+    tx.cfg
+        .inputs
+        .insert(rank, FetchCfg::of(&broken, t.as_ref()));
     // Per-node mode: the fetcher takes the module's whole `report` (that
     // of the other inputs' merge: an empty input changes no decision).
     let (reports, passes) = match &tx.module {
@@ -738,9 +800,9 @@ fn cfg_error_merge(
     let f = fetch_transaction_with_reports(&broken, entry, &tx.cmds, &reports, sizes.fetch)
         .map_err(golden_err)?;
     check_cfg_errors(&f, &tx, passes, code)?;
-    tx.fetch.push(f);
+    tx.fetch.insert(rank, f);
     tx.header.fetch_err = code;
-    tx.header.fetch_rank = (n - 1) as u16;
+    tx.header.fetch_rank = rank as u16;
     Ok(Some(tx))
 }
 
@@ -774,8 +836,25 @@ fn check_cfg_errors(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::merge::merge_level::BaseNode;
+    use crate::merge::merge_level::{BaseKind, BaseNode};
     use crate::merge::MergeMode;
+
+    /// The merge of `case` (two inputs) with leaf FIFOs of `2^leaf_bits`
+    /// in `mode`, and a label naming them.
+    fn merge_of(
+        case: &RealCase,
+        p: &Params,
+        leaf_bits: u32,
+        mode: MergeMode,
+    ) -> (String, MergerTransaction) {
+        let sizes = MergerSizes {
+            leaf_bits,
+            ..MergerSizes::new(p)
+        };
+        let (store, table, ids) = case;
+        let tx = merger_transaction(store, table, ids, mode, 7, 2, sizes).unwrap();
+        (format!("D = {} L = {leaf_bits} {mode}", p.max_lod), tx)
+    }
 
     /// The flood sends the leaf FIFOs of five consecutive LODs, from LOD 3
     /// down, two leaves more than each holds, in a level mode and in per-node
@@ -788,19 +867,10 @@ mod tests {
         let small = Params::new(8, 0, 12, 3).unwrap();
         for p in [Params::default(), small] {
             for leaf_bits in [4, 6] {
-                let (store, table, ids) = leaf_flood(&p, leaf_bits).unwrap().unwrap();
+                let case = leaf_flood(&p, leaf_bits).unwrap().unwrap();
                 let held = 1usize << leaf_bits;
-                let sizes = MergerSizes {
-                    leaf_bits,
-                    ..MergerSizes::new(&p)
-                };
-                let modes = [
-                    MergeMode::Overlap { num: 1, den: 2 },
-                    MergeMode::PerNode { num: 1, den: 2 },
-                ];
-                for mode in modes {
-                    let at = format!("D = {} L = {leaf_bits} {mode}", p.max_lod);
-                    let tx = merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap();
+                for mode in BOTH_MODES {
+                    let (at, tx) = merge_of(&case, &p, leaf_bits, mode);
                     let mut per_lod = std::collections::BTreeMap::<u8, Vec<&BaseNode>>::new();
                     for l in &tx.leaves {
                         per_lod.entry(l.record.voxel.lod).or_default().push(l);
@@ -832,6 +902,61 @@ mod tests {
                 }
             }
             assert!(leaf_flood(&p, FLOOD_MOST_LEAF_BITS + 1).unwrap().is_none());
+        }
+    }
+
+    /// Both inputs of the flood of two bring their 48 leaves to LOD 2,
+    /// above the merging level: 96 leaves in 64 voxels, which overflow the
+    /// FIFOs of `2^4` and `2^6` and not of `2^7`; the base keeps the first
+    /// `2^leaf_bits` in the leaf merge's order, from both inputs, at the
+    /// default and the small configuration, in the level modes of the
+    /// regression (per-node mode merges them in the module: its leaf FIFOs
+    /// take only leaves above `lo`, where at most one of two inputs has
+    /// nodes).
+    #[test]
+    fn the_flood_of_two_overflows_lod_2_from_both_inputs() {
+        let small = Params::new(8, 0, 12, 3).unwrap();
+        for p in [Params::default(), small] {
+            let case = flood_of_two(&p).unwrap();
+            for leaf_bits in [4, 6, 7] {
+                let held = 1usize << leaf_bits;
+                let modes = [
+                    MergeMode::Overlap { num: 1, den: 2 },
+                    MergeMode::Proportion { num: 1, den: 1 },
+                ];
+                for mode in modes {
+                    let (at, tx) = merge_of(&case, &p, leaf_bits, mode);
+                    let at2: Vec<&BaseNode> = tx
+                        .leaves
+                        .iter()
+                        .filter(|l| l.record.voxel.lod == FLOOD_OF_TWO_LOD)
+                        .collect();
+                    assert_eq!(at2.len(), 2 * FLOOD_OF_TWO_LEAVES, "{at}");
+                    assert!(
+                        tx.leaves
+                            .iter()
+                            .all(|l| l.record.voxel.lod >= FLOOD_OF_TWO_LOD),
+                        "{at}"
+                    );
+                    let inputs: std::collections::BTreeSet<u8> = at2
+                        .iter()
+                        .filter_map(|l| match l.kind {
+                            BaseKind::Reused { at } => Some(at.hier),
+                            BaseKind::Created { .. } => None,
+                        })
+                        .collect();
+                    assert_eq!(inputs, [1, 2].into(), "{at}: reused leaves of both inputs");
+                    let overflows = at2.len() > held;
+                    assert_eq!(tx.header.leaf_overflow, overflows, "{at}");
+                    assert!(tx.exact, "{at}");
+                    let kept = &at2[..at2.len().min(held)];
+                    assert!(
+                        tx.base[..kept.len()].iter().eq(kept.iter().copied()),
+                        "{at}"
+                    );
+                    assert_eq!(tx.header.writer.err, 0, "{at}");
+                }
+            }
         }
     }
 
@@ -971,10 +1096,11 @@ mod tests {
         }
     }
 
-    /// Every code of [`CFG_ERRORS`] has its merge, in the level modes and
-    /// per node: the header names the code and the last rank, that input's
-    /// fetcher reads nothing, and the merge is that of the other inputs
-    /// (their fetches and the writer's streams as without the broken one).
+    /// Every code of [`CFG_ERRORS`] has its merge on the last input, and an
+    /// invalid entry one on the first, in the level modes and per node: the
+    /// header names the code and the rank, that input's fetcher reads
+    /// nothing, and the merge is that of the other inputs (their fetches
+    /// and the writer's streams as without the broken one).
     #[test]
     fn every_cfg_error_has_its_merge() {
         for mode in BOTH_MODES {
@@ -984,14 +1110,12 @@ mod tests {
             };
             let sizes = MergerSizes::new(&d.params);
             let h = hard_merges(&d, sizes).unwrap();
-            for code in CFG_ERRORS {
-                let tx = h
-                    .merges
-                    .iter()
-                    .find(|t| t.header.fetch_err == code)
-                    .unwrap_or_else(|| panic!("{mode}: no merge with fetcher error {code}"));
-                let rank = tx.fetch.len() - 1;
-                assert_eq!(tx.header.fetch_rank as usize, rank, "{mode} {code}");
+            let mut met = Vec::new();
+            for tx in h.merges.iter().filter(|t| t.header.fetch_err != 0) {
+                let (code, rank) = (tx.header.fetch_err, tx.header.fetch_rank as usize);
+                let last = tx.fetch.len() - 1;
+                met.push((code, if rank == last { "last" } else { "first" }));
+                assert!(rank == 0 || rank == last, "{mode} {code} {rank}");
                 let f = &tx.fetch[rank];
                 assert!(
                     f.node_reqs.is_empty() && f.ref_reqs.is_empty(),
@@ -1001,14 +1125,19 @@ mod tests {
                     .leaves
                     .iter()
                     .all(|l| matches!(l, crate::merge::fetcher::LeafOut::End)));
+                assert!(tx
+                    .fetch
+                    .iter()
+                    .enumerate()
+                    .all(|(i, f)| i == rank || !f.node_reqs.is_empty()));
                 assert!(!tx.header.leaf_overflow, "{mode} {code}");
                 assert_eq!(tx.cfg.inputs.len(), tx.fetch.len(), "{mode} {code}");
             }
-            assert_eq!(
-                h.merges.iter().filter(|t| t.header.fetch_err != 0).count(),
-                CFG_ERRORS.len(),
-                "{mode}"
-            );
+            met.sort();
+            let mut want: Vec<(u64, &str)> = CFG_ERRORS.iter().map(|&c| (c, "last")).collect();
+            want.push((fetch_err::ENTRY, "first"));
+            want.sort();
+            assert_eq!(met, want, "{mode}");
         }
     }
 

@@ -114,11 +114,11 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
                 .any(|i| store.get(*i).is_some_and(|h| h.root_count > 1)) as usize;
         out.merges.push(tx);
     }
-    let flood = leaf_flood(p, sizes.leaf_bits)?;
-    let floods = flood.into_iter().chain([flood_of_two(p)?]);
+    let mut floods: Vec<RealCase> = leaf_flood(p, sizes.leaf_bits)?.into_iter().collect();
+    floods.push(flood_of_two(p)?);
     for (store, table, ids) in deep_cases(p)?
         .iter()
-        .chain(&floods.collect::<Vec<_>>())
+        .chain(&floods)
         .filter(|c| c.2.len() <= k)
     {
         let tx =
@@ -501,8 +501,9 @@ pub const FLOOD_OF_TWO_LEAVES: usize = 48;
 /// input is a lattice of [`FLOOD_OF_TWO_LEAVES`] triangles, each a leaf of
 /// its own LOD-2 voxel (the first input's in the voxel layers `z` 0 to 2,
 /// the second's `z` 1 to 3), and a tiny triangle at the same place in
-/// both, so the two inputs share the voxels of every LOD below its, the
-/// merging level lies there, and the 96 leaves above it enter LOD 2's FIFO.
+/// both, so the two inputs share one voxel at every LOD from 3 down to the
+/// tiny triangle's, the merging level lies there, and the 96 leaves above
+/// it enter LOD 2's FIFO.
 /// Both are built on one grid (the unit cube), untranslated.
 pub fn flood_of_two(p: &Params) -> Result<RealCase> {
     let edge = 0.5f32.powi(FLOOD_OF_TWO_LOD as i32);

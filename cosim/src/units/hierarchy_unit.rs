@@ -22,6 +22,7 @@ use golden::translate::extents::VoxelRange;
 use golden::translate::model::{TranslateDesign, TranslateModel};
 use golden::translate::stimulus::SplitMix64;
 use golden::translate::{TranslateInputs, TranslateOutputs, Translation, TranslationTable};
+use golden::vectors::hard_merges;
 use golden::vectors::streams::{
     merger_beats, merger_layout, merger_ports, random_merger_case_of, MergeBeats, Merges, UnitPorts,
 };
@@ -168,7 +169,62 @@ pub fn case_of(
     (store, table, ids): (&HierarchyStore, &TranslationTable, &[u8]),
     out_id: u8,
 ) -> Result<HierarchyCase> {
-    let design = &c.merger.design;
+    let dets = determines(rng, c, model, (store, table), ids)?;
+    let cmd = merge_cmd(store, ids, out_id).map_err(design_err)?;
+    let (k, sizes) = (c.merger.design.inputs, c.merger.sizes);
+    let tx = hierarchy_merge(store, model.table(), &cmd, c.merger.design.mode, k, sizes)
+        .map_err(design_err)?;
+    let merge = c.cmd_layout().pack_merge(&cmd).map_err(design_err)?;
+    Ok(HierarchyCase { dets, merge, tx })
+}
+
+/// The case merging `ids` (two or more) of `store` when no determine
+/// command wrote the entry of the input of rank `rank`: determine commands
+/// for the others only, on a `model` whose entry of `ids[rank]` is still
+/// invalid (a chunk's table from reset), then the merge command. That
+/// input's fetcher refuses its `cfg` (`ENTRY`, `fetch_rank` = `rank`) and
+/// the merge is golden's of the others (`hard_merges::entry_error_merge`).
+/// `None` when the entry is valid or golden does not model the merge bit
+/// for bit.
+pub fn entry_error_case(
+    rng: &mut SplitMix64,
+    c: &HierarchyUnitConfig,
+    model: &mut TranslateModel,
+    (store, table, ids): (&HierarchyStore, &TranslationTable, &[u8]),
+    (out_id, rank): (u8, usize),
+) -> Result<Option<HierarchyCase>> {
+    let broken = ids.get(rank).copied();
+    let unwritten = broken.is_some_and(|id| model.table().get(id as u32).ok().flatten().is_none());
+    if ids.len() < 2 || !unwritten || out_id != hard_merges::out_id(&c.merger.design.params) {
+        return Ok(None);
+    }
+    let others: Vec<u8> = ids
+        .iter()
+        .copied()
+        .filter(|&id| Some(id) != broken)
+        .collect();
+    let dets = determines(rng, c, model, (store, table), &others)?;
+    let (design, sizes) = (&c.merger.design, c.merger.sizes);
+    let tx = hard_merges::entry_error_merge(design, sizes, store, model.table(), ids, rank)
+        .map_err(design_err)?;
+    let Some(tx) = tx else {
+        return Ok(None);
+    };
+    let cmd = merge_cmd(store, ids, out_id).map_err(design_err)?;
+    let merge = c.cmd_layout().pack_merge(&cmd).map_err(design_err)?;
+    Ok(Some(HierarchyCase { dets, merge, tx }))
+}
+
+/// Per input of `ids` a determine command that writes its translation of
+/// `table` into the unit's table, a random fraction of a voxel off the
+/// grid, run on `model`; with what each puts on `det_out`.
+fn determines(
+    rng: &mut SplitMix64,
+    c: &HierarchyUnitConfig,
+    model: &mut TranslateModel,
+    (store, table): (&HierarchyStore, &TranslationTable),
+    ids: &[u8],
+) -> Result<Vec<(TranslateInputs, TranslateOutputs)>> {
     let mut dets = Vec::new();
     for &id in ids {
         let h = store
@@ -191,23 +247,25 @@ pub fn case_of(
         }
         dets.push((inp, out));
     }
-    let cmd = merge_cmd(store, ids, out_id).map_err(design_err)?;
-    let (k, sizes) = (design.inputs, c.merger.sizes);
-    let tx =
-        hierarchy_merge(store, model.table(), &cmd, design.mode, k, sizes).map_err(design_err)?;
-    let merge = c.cmd_layout().pack_merge(&cmd).map_err(design_err)?;
-    Ok(HierarchyCase { dets, merge, tx })
+    Ok(dets)
 }
 
-/// The cases of a run in order: with [`Merges::Hard`], first golden's
-/// named hard cases of valid inputs (`hard_merges::hard_cases`: real
-/// merges, several and sixteen roots, the leaf ladder, the deep tops) and
-/// the leaf floods (`hard_merges::leaf_flood`, `flood_of_two`), those golden does not model
-/// bit for bit left out (`MergerTransaction::exact`: per-node mode's FIFOs
-/// dropping nodes), then random merges of `kind`.
+/// The cases of a run in order: with [`Merges::Hard`], first the first
+/// hard case of two inputs or more with its first input's entry never
+/// written ([`entry_error_case`]: the merge software asks of an input it
+/// did not place), then the same with its inputs in reverse order (the
+/// unwritten entry at the last rank), then golden's named hard cases of valid inputs
+/// (`hard_merges::hard_cases`: real merges, several and sixteen roots, the
+/// leaf ladder, the deep tops) and the leaf floods
+/// (`hard_merges::leaf_flood`, `flood_of_two`), those golden does not
+/// model bit for bit left out (`MergerTransaction::exact`: per-node mode's
+/// FIFOs dropping nodes), then random merges of `kind`.
 pub struct Draw {
     rng: SplitMix64,
     kind: Merges,
+    /// The entry-error cases with the rank of the unwritten entry, drawn
+    /// first (the table is then from reset).
+    entry_errors: std::collections::VecDeque<(golden::merge::stimulus::RealCase, usize)>,
     named: std::collections::VecDeque<golden::merge::stimulus::RealCase>,
     /// Named cases drawn so far (those left out not counted).
     pub named_drawn: u64,
@@ -216,20 +274,29 @@ pub struct Draw {
 impl Draw {
     /// The draws of a run of `kind` from `seed` for `c`.
     pub fn new(c: &HierarchyUnitConfig, seed: u64, kind: Merges) -> Result<Draw> {
-        let named = match kind {
+        let (entry_errors, named) = match kind {
             Merges::Hard => {
-                use golden::vectors::hard_merges::{flood_of_two, hard_cases, leaf_flood};
-                let mut cases = hard_cases(&c.merger.design).map_err(design_err)?;
+                let mut cases = hard_merges::hard_cases(&c.merger.design).map_err(design_err)?;
                 let p = &c.merger.design.params;
-                cases.extend(leaf_flood(p, c.merger.sizes.leaf_bits).map_err(design_err)?);
-                cases.push(flood_of_two(p).map_err(design_err)?);
-                cases.into()
+                let flood = hard_merges::leaf_flood(p, c.merger.sizes.leaf_bits);
+                cases.extend(flood.map_err(design_err)?);
+                cases.push(hard_merges::flood_of_two(p).map_err(design_err)?);
+                let mut errors = std::collections::VecDeque::new();
+                if let Some(pair) = cases.iter().find(|c| c.2.len() >= 2) {
+                    let (store, table, ids) = pair.clone();
+                    let last = ids.len() - 1;
+                    let reversed = ids.iter().rev().copied().collect();
+                    errors.push_back((pair.clone(), 0));
+                    errors.push_back(((store, table, reversed), last));
+                }
+                (errors, cases.into())
             }
             Merges::Random => Default::default(),
         };
         Ok(Draw {
             rng: SplitMix64(seed),
             kind,
+            entry_errors,
             named,
             named_drawn: 0,
         })
@@ -241,7 +308,19 @@ impl Draw {
         c: &HierarchyUnitConfig,
         model: &mut TranslateModel,
     ) -> Result<HierarchyCase> {
-        let out_id = golden::vectors::hard_merges::out_id(&c.merger.design.params);
+        let out_id = hard_merges::out_id(&c.merger.design.params);
+        while let Some(((store, table, ids), rank)) = self.entry_errors.pop_front() {
+            let before = model.clone();
+            let case = (&store, &table, ids.as_slice());
+            let case = entry_error_case(&mut self.rng, c, model, case, (out_id, rank))?;
+            match case {
+                Some(case) if case.tx.exact => {
+                    self.named_drawn += 1;
+                    return Ok(case);
+                }
+                _ => *model = before,
+            }
+        }
         while let Some((store, table, ids)) = self.named.pop_front() {
             // A case left out sends nothing, so its determine commands
             // must not stay in the model's table either.
@@ -671,7 +750,50 @@ impl HierarchySim {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use golden::merge::fetcher::fetch_err;
     use rtl_gen::merge::{MergeConfig, MergerConfig};
+
+    /// A hard run's first case is a merge whose first input no determine
+    /// command wrote: determine commands for the others only, a merge
+    /// command naming all, and golden's header saying `ENTRY` at rank 0,
+    /// with the other inputs' merge; the model's table keeps the first
+    /// input's entry invalid. The second is the same inputs in reverse
+    /// order, `ENTRY` at the last rank. A random run has no such case.
+    #[test]
+    fn a_hard_run_starts_with_a_merge_of_an_unwritten_entry() {
+        let c = HierarchyUnitConfig::new(MergerConfig::new(MergeConfig::default()));
+        let mut model = TranslateModel::new(c.table).unwrap();
+        let mut draw = Draw::new(&c, 1, Merges::Hard).unwrap();
+        let case = draw.next(&c, &mut model).unwrap();
+        let inputs = case.tx.fetch.len();
+        assert!(inputs >= 2);
+        assert_eq!(case.dets.len(), inputs - 1);
+        let h = &case.tx.header;
+        assert_eq!((h.fetch_err, h.fetch_rank), (fetch_err::ENTRY, 0));
+        let f0 = &case.tx.fetch[0];
+        assert!(f0.node_reqs.is_empty() && f0.ref_reqs.is_empty());
+        assert!(case.tx.fetch[1..].iter().all(|f| !f.node_reqs.is_empty()));
+        let p = &c.merger.design.params;
+        let invalid = golden::translate::table::pack_entry(None, p);
+        assert_eq!(case.tx.cfg.inputs[0].entry, invalid);
+        assert_eq!(draw.named_drawn, 1);
+        let last = draw.next(&c, &mut model).unwrap();
+        let rank = last.tx.fetch.len() - 1;
+        assert_eq!(
+            (last.tx.header.fetch_err, last.tx.header.fetch_rank),
+            (fetch_err::ENTRY, rank as u16)
+        );
+        assert_eq!(last.tx.cfg.inputs[rank].entry, invalid);
+        assert_eq!(last.dets.len(), rank);
+        let next = draw.next(&c, &mut model).unwrap();
+        assert_eq!(next.tx.header.fetch_err, 0);
+        let mut random = Draw::new(&c, 1, Merges::Random).unwrap();
+        let mut model = TranslateModel::new(c.table).unwrap();
+        for _ in 0..5 {
+            let case = random.next(&c, &mut model).unwrap();
+            assert_eq!(case.tx.header.fetch_err, 0);
+        }
+    }
 
     /// What the draws record on `det_out` is what a fresh table gives the
     /// commands sent, in order: a named case left out (per-node mode, FIFOs

@@ -722,6 +722,24 @@ impl DepthFirst<'_> {
     }
 }
 
+/// The merge a merger makes of `ids` when the translation entry of the
+/// input of rank `rank` is invalid (`ENTRY`) and the others' entries are
+/// `table`'s: as [`hard_merges`]' error merges (the header names `ENTRY`
+/// and the rank; the rest is the merge of the other inputs over the range
+/// of all of them). What the hierarchy unit does with a merge command that
+/// names an input no determine command wrote. `None` when such a merge is
+/// not one golden models bit for bit (see `cfg_error_merge`).
+pub fn entry_error_merge(
+    d: &MergeDesign,
+    sizes: MergerSizes,
+    store: &HierarchyStore,
+    table: &TranslationTable,
+    ids: &[u8],
+    rank: usize,
+) -> Result<Option<MergerTransaction>> {
+    cfg_error_merge(d, sizes, store, table, ids, (fetch_err::ENTRY, rank))
+}
+
 /// A merge whose input of rank `rank` has a `cfg` that makes its fetcher
 /// refuse it with `code` (one of [`CFG_ERRORS`]): an invalid translation entry, a
 /// `root_count` of 0, or one more root than the sorter holds. Its fetcher

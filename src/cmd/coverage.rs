@@ -169,10 +169,11 @@ const FLOORS: [(&str, Aims); 3] = [
     (
         "hierarchy_unit_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6_t8_b64",
         // Two merges naming an input no determine command wrote, its hard
-        // cases and both leaf floods, then hard-kind random merges,
-        // placements a fraction off the grid (94.5% / 64.0%).
+        // cases (the first after a burst of determine commands) and both
+        // leaf floods, then hard-kind random merges, placements a fraction
+        // off the grid (95.2% / 63.7%).
         Aims {
-            line: 94.5,
+            line: 95.0,
             toggle: 63.5,
         },
     ),

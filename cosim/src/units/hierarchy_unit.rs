@@ -166,10 +166,35 @@ pub fn case_of(
     rng: &mut SplitMix64,
     c: &HierarchyUnitConfig,
     model: &mut TranslateModel,
-    (store, table, ids): (&HierarchyStore, &TranslationTable, &[u8]),
+    case: (&HierarchyStore, &TranslationTable, &[u8]),
     out_id: u8,
 ) -> Result<HierarchyCase> {
-    let dets = determines(rng, c, model, (store, table), ids)?;
+    repeated_case_of(rng, c, model, case, (out_id, 1))
+}
+
+/// Determine commands per input of a hard run's first named case
+/// ([`Draw`]), back to back: more than the determine pipeline holds (its
+/// four stages and the two entries of `det_out`'s skid buffer), so that
+/// every stage holds its beat while `det_out` is held (the coverage run's
+/// `det_out` stalls; 4 a input, 8 at k = 2, left the first two stages
+/// unheld there: measured).
+pub const DETERMINE_BURST: usize = 8;
+
+/// [`case_of`] with `repeat` determine commands per input, back to back
+/// (each a different fraction off the grid, the last one's entry the
+/// same).
+fn repeated_case_of(
+    rng: &mut SplitMix64,
+    c: &HierarchyUnitConfig,
+    model: &mut TranslateModel,
+    (store, table, ids): (&HierarchyStore, &TranslationTable, &[u8]),
+    (out_id, repeat): (u8, usize),
+) -> Result<HierarchyCase> {
+    let repeated: Vec<u8> = ids
+        .iter()
+        .flat_map(|&id| std::iter::repeat_n(id, repeat))
+        .collect();
+    let dets = determines(rng, c, model, (store, table), &repeated)?;
     let cmd = merge_cmd(store, ids, out_id).map_err(design_err)?;
     let (k, sizes) = (c.merger.design.inputs, c.merger.sizes);
     let tx = hierarchy_merge(store, model.table(), &cmd, c.merger.design.mode, k, sizes)
@@ -254,7 +279,8 @@ fn determines(
 /// hard case of two inputs or more with its first input's entry never
 /// written ([`entry_error_case`]: the merge software asks of an input it
 /// did not place), then the same with its inputs in reverse order (the
-/// unwritten entry at the last rank), then golden's named hard cases of valid inputs
+/// unwritten entry at the last rank), then golden's named hard cases of
+/// valid inputs, the first with [`DETERMINE_BURST`] determine commands per input
 /// (`hard_merges::hard_cases`: real merges, several and sixteen roots, the
 /// leaf ladder, the deep tops) and the leaf floods
 /// (`hard_merges::leaf_flood`, `flood_of_two`), those golden does not
@@ -269,6 +295,8 @@ pub struct Draw {
     named: std::collections::VecDeque<golden::merge::stimulus::RealCase>,
     /// Named cases drawn so far (those left out not counted).
     pub named_drawn: u64,
+    /// Entry-error cases among them.
+    errors_drawn: u64,
 }
 
 impl Draw {
@@ -299,6 +327,7 @@ impl Draw {
             entry_errors,
             named,
             named_drawn: 0,
+            errors_drawn: 0,
         })
     }
 
@@ -316,6 +345,7 @@ impl Draw {
             match case {
                 Some(case) if case.tx.exact => {
                     self.named_drawn += 1;
+                    self.errors_drawn += 1;
                     return Ok(case);
                 }
                 _ => *model = before,
@@ -325,7 +355,13 @@ impl Draw {
             // A case left out sends nothing, so its determine commands
             // must not stay in the model's table either.
             let before = model.clone();
-            let case = case_of(&mut self.rng, c, model, (&store, &table, &ids), out_id)?;
+            let repeat = if self.named_drawn == self.errors_drawn {
+                DETERMINE_BURST
+            } else {
+                1
+            };
+            let case = (&store, &table, ids.as_slice());
+            let case = repeated_case_of(&mut self.rng, c, model, case, (out_id, repeat))?;
             if case.tx.exact {
                 self.named_drawn += 1;
                 return Ok(case);
@@ -787,6 +823,14 @@ mod tests {
         assert_eq!(last.dets.len(), rank);
         let next = draw.next(&c, &mut model).unwrap();
         assert_eq!(next.tx.header.fetch_err, 0);
+        let inputs = next.tx.fetch.len();
+        assert_eq!(
+            next.dets.len(),
+            inputs * DETERMINE_BURST,
+            "the first named case's burst"
+        );
+        let after = draw.next(&c, &mut model).unwrap();
+        assert_eq!(after.dets.len(), after.tx.fetch.len());
         let mut random = Draw::new(&c, 1, Merges::Random).unwrap();
         let mut model = TranslateModel::new(c.table).unwrap();
         for _ in 0..5 {

@@ -176,7 +176,7 @@ pub fn case_of(
 /// ([`Draw`]), back to back: more than the determine pipeline holds (its
 /// four stages and the two entries of `det_out`'s skid buffer), so that
 /// every stage holds its beat while `det_out` is held (the coverage run's
-/// `det_out` stalls; 4 a input, 8 at k = 2, left the first two stages
+/// `det_out` stalls; 4 per input, 8 at k = 2, left the first two stages
 /// unheld there: measured).
 pub const DETERMINE_BURST: usize = 8;
 

@@ -280,10 +280,10 @@ fn determines(
 /// written ([`entry_error_case`]: the merge software asks of an input it
 /// did not place), then the same with its inputs in reverse order (the
 /// unwritten entry at the last rank), then golden's named hard cases of
-/// valid inputs, the first with [`DETERMINE_BURST`] determine commands per input
-/// (`hard_merges::hard_cases`: real merges, several and sixteen roots, the
-/// leaf ladder, the deep tops) and the leaf floods
-/// (`hard_merges::leaf_flood`, `flood_of_two`), those golden does not
+/// valid inputs (`hard_merges::hard_cases`: real merges, several and
+/// sixteen roots, the leaf ladder, the deep tops) and the leaf floods
+/// (`hard_merges::leaf_flood`, `flood_of_two`), the first of them after
+/// [`DETERMINE_BURST`] determine commands per input, those golden does not
 /// model bit for bit left out (`MergerTransaction::exact`: per-node mode's
 /// FIFOs dropping nodes), then random merges of `kind`.
 pub struct Draw {

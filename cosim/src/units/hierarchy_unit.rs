@@ -282,7 +282,7 @@ fn determines(
 /// unwritten entry at the last rank), then golden's named hard cases of
 /// valid inputs (`hard_merges::hard_cases`: real merges, several and
 /// sixteen roots, the leaf ladder, the deep tops) and the leaf floods
-/// (`hard_merges::leaf_flood`, `flood_of_two`), the first of them after
+/// (`hard_merges::leaf_floods`), the first of them after
 /// [`DETERMINE_BURST`] determine commands per input, those golden does not
 /// model bit for bit left out (`MergerTransaction::exact`: per-node mode's
 /// FIFOs dropping nodes), then random merges of `kind`.
@@ -295,8 +295,9 @@ pub struct Draw {
     named: std::collections::VecDeque<golden::merge::stimulus::RealCase>,
     /// Named cases drawn so far (those left out not counted).
     pub named_drawn: u64,
-    /// Entry-error cases among them.
-    errors_drawn: u64,
+    /// Whether the next named case of valid inputs comes after a burst of
+    /// [`DETERMINE_BURST`] determine commands per input (the first one).
+    burst: bool,
 }
 
 impl Draw {
@@ -306,9 +307,8 @@ impl Draw {
             Merges::Hard => {
                 let mut cases = hard_merges::hard_cases(&c.merger.design).map_err(design_err)?;
                 let p = &c.merger.design.params;
-                let flood = hard_merges::leaf_flood(p, c.merger.sizes.leaf_bits);
-                cases.extend(flood.map_err(design_err)?);
-                cases.push(hard_merges::flood_of_two(p).map_err(design_err)?);
+                let floods = hard_merges::leaf_floods(p, c.merger.sizes.leaf_bits);
+                cases.extend(floods.map_err(design_err)?);
                 let mut errors = std::collections::VecDeque::new();
                 if let Some(pair) = cases.iter().find(|c| c.2.len() >= 2) {
                     let (store, table, ids) = pair.clone();
@@ -327,7 +327,7 @@ impl Draw {
             entry_errors,
             named,
             named_drawn: 0,
-            errors_drawn: 0,
+            burst: true,
         })
     }
 
@@ -345,7 +345,6 @@ impl Draw {
             match case {
                 Some(case) if case.tx.exact => {
                     self.named_drawn += 1;
-                    self.errors_drawn += 1;
                     return Ok(case);
                 }
                 _ => *model = before,
@@ -355,15 +354,12 @@ impl Draw {
             // A case left out sends nothing, so its determine commands
             // must not stay in the model's table either.
             let before = model.clone();
-            let repeat = if self.named_drawn == self.errors_drawn {
-                DETERMINE_BURST
-            } else {
-                1
-            };
+            let repeat = if self.burst { DETERMINE_BURST } else { 1 };
             let case = (&store, &table, ids.as_slice());
             let case = repeated_case_of(&mut self.rng, c, model, case, (out_id, repeat))?;
             if case.tx.exact {
                 self.named_drawn += 1;
+                self.burst = false;
                 return Ok(case);
             }
             *model = before;

@@ -114,8 +114,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
                 .any(|i| store.get(*i).is_some_and(|h| h.root_count > 1)) as usize;
         out.merges.push(tx);
     }
-    let mut floods: Vec<RealCase> = leaf_flood(p, sizes.leaf_bits)?.into_iter().collect();
-    floods.push(flood_of_two(p)?);
+    let floods = leaf_floods(p, sizes.leaf_bits)?;
     for (store, table, ids) in deep_cases(p)?
         .iter()
         .chain(&floods)
@@ -533,6 +532,15 @@ pub fn flood_of_two(p: &Params) -> Result<RealCase> {
         Ok((h, Translation::zero(top)))
     };
     case_of(p, vec![input(1, 0)?, input(2, 1)?])
+}
+
+/// Both floods for leaf FIFOs of `2^leaf_bits`, in the order the hard
+/// merges send them: [`leaf_flood`] (when `leaf_bits` allows it), then
+/// [`flood_of_two`].
+pub fn leaf_floods(p: &Params, leaf_bits: u32) -> Result<Vec<RealCase>> {
+    let mut floods: Vec<RealCase> = leaf_flood(p, leaf_bits)?.into_iter().collect();
+    floods.push(flood_of_two(p)?);
+    Ok(floods)
 }
 
 /// Triangle counts of [`depth_first_store`]'s dense input, largest first:

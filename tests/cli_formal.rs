@@ -399,7 +399,8 @@ fn a_fetcher_whose_phase_is_not_reset_fails_its_determined_proof() {
 
 #[test]
 fn a_fetcher_that_takes_a_command_while_busy_fails_its_status_proof() {
-    // `cmd` ready whenever an input is loaded, not only while idle.
+    // `cmd` ready whenever an input is loaded, not only while idle or
+    // reading the next command's roots (PREFETCH).
     let module = rtl_gen::formal::units::fetcher_small().module;
     let (line, _) = common::emitted_assign(&module, "cmd_ready");
     assert_broken_fails(

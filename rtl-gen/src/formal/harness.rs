@@ -411,9 +411,28 @@ fn status(
     };
     let (mut now, mut later) = (String::new(), String::new());
     if let Some(idle) = &s.idle {
+        let free = match &s.ahead {
+            Some((e, taken)) => {
+                let e = resolve(e, nets, used)?;
+                writeln!(
+                    now,
+                    "        p_{idle}_not_ahead: assert(!({idle} && ({e})));"
+                )
+                .unwrap();
+                for i in taken {
+                    writeln!(
+                        now,
+                        "        p_{i}_only_when_{idle}_or_ahead: assert(!{i}_ready || {idle} || ({e}));"
+                    )
+                    .unwrap();
+                }
+                format!("({idle} || ({e}))")
+            }
+            None => idle.clone(),
+        };
         writeln!(
             now,
-            "        p_{idle}_means_empty: assert({idle} == ({quiet}));"
+            "        p_{idle}_means_empty: assert({free} == ({quiet}));"
         )
         .unwrap();
         for i in &s.only_when_idle {
@@ -435,8 +454,12 @@ fn status(
             )
             .unwrap();
         }
-    } else if s.done.is_some() || !s.only_when_idle.is_empty() || !s.busy.is_empty() {
-        return Err("status: `done`, `busy` and `only_when_idle` need `idle`".into());
+    } else if s.done.is_some()
+        || !s.only_when_idle.is_empty()
+        || !s.busy.is_empty()
+        || s.ahead.is_some()
+    {
+        return Err("status: `done`, `busy`, `only_when_idle` and `ahead` need `idle`".into());
     }
     for (label, e) in &s.rules {
         let e = resolve(e, nets, used)?;

@@ -152,6 +152,12 @@ pub struct Status {
     pub busy: Vec<usize>,
     /// Input streams taken only while idle.
     pub only_when_idle: Vec<String>,
+    /// A state in which the unit works ahead for a transaction it has not
+    /// taken yet (the level fetcher's PREFETCH, SPEC 8.13): an expression
+    /// as in [`Status::rules`], and the input streams also taken then.
+    /// `idle` and it never hold together, and one of them holds exactly
+    /// when every flow of `busy` has nothing outstanding.
+    pub ahead: Option<(String, Vec<String>)>,
     /// Further promises of the status outputs, `(label, expression)`:
     /// SystemVerilog over ports, `dut.<net>` and the flows' counters
     /// (`f<j>_occ`), checked in every cycle after reset; one with `$past`
@@ -389,8 +395,25 @@ mod tests {
             clocked.contains("p_done_after_header: assert(done == $past("),
             "{sv}"
         );
-        // A counted flow's asking side may be a number.
+        // The level fetcher's PREFETCH: idle or prefetching exactly when no
+        // command is in progress, `cmd` taken in either, `cfg` only idle;
+        // the per-node fetcher takes `cmd` only while idle.
         let sv = units::fetcher_small().harness().unwrap();
+        let ahead = r"((\dut.phase  == 3'd1 || \dut.phase  == 3'd2 || \dut.phase  == 3'd5) && !\dut.cmd_have )";
+        for p in [
+            format!("p_idle_not_ahead: assert(!(idle && {ahead}));"),
+            format!("p_idle_means_empty: assert((idle || {ahead}) == (f0_occ == 0));"),
+            format!("p_cmd_only_when_idle_or_ahead: assert(!cmd_ready || idle || {ahead});"),
+            "p_cfg_only_when_idle: assert(!cfg_ready || idle);".into(),
+        ] {
+            assert!(sv.contains(&p), "{p} in {sv}");
+        }
+        let pn = units::fetcher_per_node_small().harness().unwrap();
+        assert!(
+            pn.contains("p_cmd_only_when_idle: assert(!cmd_ready || idle);"),
+            "{pn}"
+        );
+        // A counted flow's asking side may be a number.
         assert!(
             sv.contains("wire [3:0] f1_in = cmd_valid && cmd_ready ? ("),
             "{sv}"

@@ -633,13 +633,17 @@ fn levels_asked(l: &golden::merge::fetcher::FetchLayout) -> String {
 /// while no command is in progress, `cfg` and `cmd` taken only then, and
 /// by then every `End` owed is at least in `out`'s skid buffer. At most
 /// `capacity` `End`s owed: a command's levels (a `lod` field's worth) and
-/// two of the one before in that skid buffer.
+/// two of the one before in that skid buffer. With `ahead` (the level
+/// fetcher's PREFETCH), no command is in progress either while the fetcher
+/// reads the next command's roots before its `cmd` beat, and `cmd` is
+/// taken then too.
 fn fetcher_small_proof(
     m: Module,
     l: &golden::merge::fetcher::FetchLayout,
     ends: String,
     capacity: u32,
     rules: Vec<(String, String)>,
+    ahead: bool,
 ) -> Proof {
     let end_leaves = format!(
         "{} && {} == 2'd{}",
@@ -672,10 +676,21 @@ fn fetcher_small_proof(
         "idle_ends_handed_over".into(),
         "!idle || f1_occ <= dut.out_q_valid + dut.out_q_spare_valid".into(),
     ));
+    // The phases of PREFETCH before its command is taken (the fetcher's
+    // `localparam`s START, ROOTS, ARMED), which the harness cannot name.
+    let prefetching = || {
+        let ph = crate::merge::fetcher_prefetch_phases();
+        let is: Vec<String> = ph.iter().map(|c| format!("dut.phase == 3'd{c}")).collect();
+        format!("({}) && !dut.cmd_have", is.join(" || "))
+    };
     p.status = Some(Status {
         idle: Some("idle".into()),
         busy: vec![0],
-        only_when_idle: vec!["cfg".into(), "cmd".into()],
+        only_when_idle: match ahead {
+            true => vec!["cfg".into()],
+            false => vec!["cfg".into(), "cmd".into()],
+        },
+        ahead: ahead.then(|| (prefetching(), vec!["cmd".into()])),
         rules,
         ..Status::default()
     });
@@ -701,6 +716,7 @@ pub fn fetcher_small() -> Proof {
         ends,
         (1 << p.lod_bits()) + 2,
         vec![],
+        true,
     )
 }
 
@@ -731,6 +747,7 @@ pub fn fetcher_per_node_small() -> Proof {
             "report_only_in_command".into(),
             "!report_ready || !idle".into(),
         )],
+        false,
     )
 }
 
@@ -964,6 +981,7 @@ fn merger_small_proof(c: &crate::merge::MergerConfig, overlap: bool) -> Proof {
         done: (!overlap).then(|| "done".to_string()),
         busy: vec![0],
         only_when_idle: if overlap { vec![] } else { vec!["cfg".into()] },
+        ahead: None,
         rules: vec![(
             "done_after_header".into(),
             "done == $past(header_valid && header_ready)".into(),
@@ -1094,6 +1112,7 @@ pub fn hierarchy_unit_small() -> Proof {
         done: None,
         busy: vec![0, 1],
         only_when_idle: vec![],
+        ahead: None,
         rules: vec![
             (
                 "merge_after_its_determines".into(),

@@ -41,7 +41,10 @@ mod per_node;
 mod record_writer;
 mod upper_builder;
 
-pub use fetcher::{fetcher_name, fetcher_per_node_name, fetcher_per_node_unit, fetcher_unit};
+pub use fetcher::{
+    fetcher_name, fetcher_per_node_name, fetcher_per_node_unit, fetcher_prefetch_phases,
+    fetcher_unit,
+};
 pub use fetcher::{root_sorter_name, root_sorter_unit};
 pub use hierarchy_unit::{hierarchy_unit, hierarchy_unit_name, HierarchyUnitConfig};
 pub use level_choice::{overlap_counter_name, overlap_counter_unit};

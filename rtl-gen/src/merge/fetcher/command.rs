@@ -15,6 +15,11 @@ pub(super) struct Command<'m> {
     pub(super) n_phase: Next<'m>,
     pub(super) cfg_have: Signal<'m>,
     pub(super) cfg_fire: Signal<'m>,
+    pub(super) cmd_fire: Signal<'m>,
+    /// PREFETCH only: the command to walk is taken.
+    pub(super) in_hand: Option<Signal<'m>>,
+    /// The first level of the command being taken (`first` loads it).
+    pub(super) first_in: Signal<'m>,
     pub(super) idle: Signal<'m>,
     pub(super) start: Signal<'m>,
     pub(super) roots_ph: Signal<'m>,
@@ -43,6 +48,23 @@ impl<'m> Command<'m> {
     pub(super) fn is(&self, cx: &Ctx<'_, 'm>, s: u64) -> Signal<'m> {
         cx.m.states(ph::BITS, ph::STATES).is(self.phase, s)
     }
+
+    /// The phase after the roots are ready (or START found the header
+    /// bad): WALK with the command in hand, else ARMED to wait for it.
+    pub(super) fn roots_ready(&self, cx: &Ctx<'_, 'm>) -> Signal<'m> {
+        match self.in_hand {
+            Some(h) => h.mux(goto(cx, ph::WALK), goto(cx, ph::ARMED)),
+            None => goto(cx, ph::WALK),
+        }
+    }
+}
+
+/// Whether the fetcher reads a command's roots before its `cmd` beat, as
+/// soon as the `cfg` beat, or the command before (not the `cfg`'s last),
+/// allows (PREFETCH, docs/hardware.md 8.13): the level fetcher; the
+/// per-node fetcher's commands start from `cmd` as before.
+pub(super) fn prefetches(cx: &Ctx<'_, '_>) -> bool {
+    cx.l.pn.is_none()
 }
 
 /// The phase code of `s`.
@@ -63,9 +85,22 @@ pub(super) fn command<'m>(cx: &Ctx<'_, 'm>) -> Command<'m> {
     let cfg_have = m.reg("cfg_have", 1);
     let idle = is(ph::IDLE).name("is_idle");
     cfg.ready.drive(idle & !cfg_have);
-    cmd.ready.drive(idle & cfg_have);
+    // A level fetcher reads a command's roots before the command comes
+    // (PREFETCH) and takes it from START to ARMED.
+    let armed = prefetches(cx).then(|| is(ph::ARMED).name("is_armed"));
+    let cmd_have = armed.map(|_| m.reg("cmd_have", 1));
+    let cmd_wait = match (cmd_have, armed) {
+        (Some(h), Some(a)) => (is(ph::START) | is(ph::ROOTS) | a) & !h,
+        _ => idle,
+    };
+    cmd.ready.drive(cmd_wait & cfg_have);
     let cfg_fire = cfg.fire().name("cfg_fire");
     let cmd_fire = cmd.fire().name("cmd_fire");
+    let in_hand = cmd_have.map(|h| {
+        let walking = is(ph::WALK);
+        h.next(walking.mux(cx.lit(0, 1), cmd_fire.mux(cx.lit(1, 1), h)));
+        (h | cmd_fire).name("cmd_in_hand")
+    });
     let cfg_data = cfg.data;
     let keep = |name: &str, f: &golden::layout::Field| {
         let r = m.reg(name, f.width);
@@ -117,7 +152,13 @@ pub(super) fn command<'m>(cx: &Ctx<'_, 'm>) -> Command<'m> {
         None => first,
     };
     c_first.next_when(cmd_fire, first);
-    n_phase.when(cmd_fire, goto(cx, ph::START));
+    match armed {
+        Some(a) => {
+            n_phase.when(cfg_fire, goto(cx, ph::START));
+            n_phase.when(cmd_fire & a, goto(cx, ph::WALK));
+        }
+        None => n_phase.when(cmd_fire, goto(cx, ph::START)),
+    }
 
     let walk = is(ph::WALK).name("walking");
     let start = is(ph::START);
@@ -127,6 +168,9 @@ pub(super) fn command<'m>(cx: &Ctx<'_, 'm>) -> Command<'m> {
         n_phase,
         cfg_have,
         cfg_fire,
+        cmd_fire,
+        in_hand,
+        first_in: first,
         idle,
         start,
         roots_ph,
@@ -184,8 +228,9 @@ pub(super) fn header_checks<'m>(cx: &Ctx<'_, 'm>, c: &mut Command<'m>) -> FirstE
         )
         .name("header_code");
     let hdr_bad = hdr_code.ne(0);
+    let ready = c.roots_ready(cx);
     c.n_phase
-        .when(start, hdr_bad.mux(goto(cx, ph::WALK), goto(cx, ph::ROOTS)));
+        .when(start, hdr_bad.mux(ready, goto(cx, ph::ROOTS)));
     let valid = m.reg("first_err_valid", 1);
     let code = m.reg("first_err_code", fetch_err::BITS);
     let node = m.reg("first_err_node", ib);

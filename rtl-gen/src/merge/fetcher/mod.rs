@@ -58,6 +58,8 @@ mod ph {
     pub const ROOTS: u64 = 2;
     pub const WALK: u64 = 3;
     pub const DONE: u64 = 4;
+    /// PREFETCH: the roots are in the sorter, the command not yet taken.
+    pub const ARMED: u64 = 5;
     pub const BITS: u32 = 3;
     /// Every phase by name (the Verilog's `localparam`s).
     pub const STATES: &[(&str, u64)] = &[
@@ -66,7 +68,15 @@ mod ph {
         ("ROOTS", ROOTS),
         ("WALK", WALK),
         ("DONE", DONE),
+        ("ARMED", ARMED),
     ];
+}
+
+/// The phase codes in which the level fetcher reads a command's roots
+/// before taking its `cmd` beat (PREFETCH): START, ROOTS, ARMED (the
+/// formal harness names them by code).
+pub fn fetcher_prefetch_phases() -> [u64; 3] {
+    [ph::START, ph::ROOTS, ph::ARMED]
 }
 
 /// Kinds of the reference stage's in-flight words (`node_ctx`).
@@ -240,7 +250,15 @@ fn fetcher_unit_with(p: &Params, sizes: &FetchSizes, pn: bool) -> Module {
         c.cfg_fire
             .mux(cx.lit(1, 1), (done & c.last).mux(cx.lit(0, 1), c.cfg_have)),
     );
-    c.n_phase.when(done, command::goto(&cx, ph::IDLE));
+    // PREFETCH: a command not its `cfg`'s last is followed by another,
+    // whose roots are read now (the first command's, from the `cfg`).
+    let after = match command::prefetches(&cx) {
+        true => c
+            .last
+            .mux(command::goto(&cx, ph::IDLE), command::goto(&cx, ph::START)),
+        false => command::goto(&cx, ph::IDLE),
+    };
+    c.n_phase.when(done, after);
 
     io.node_req.skid_buffer("node_req_q").output("node_req");
     io.ref_req.skid_buffer("ref_req_q").output("ref_req");

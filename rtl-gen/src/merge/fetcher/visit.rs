@@ -320,8 +320,14 @@ pub(super) fn visit_checks<'m>(
         None => marker,
     };
     let level_end_push = (marker & h.end_next.eq(v_d)).name("level_end_push");
-    h.end_next.next(start.mux(
-        c.first,
+    // With PREFETCH a command's START comes before it is taken, so the
+    // first level owed is loaded as it is taken.
+    let (load, first) = match c.in_hand {
+        Some(_) => (c.cmd_fire, c.first_in),
+        None => (start, c.first),
+    };
+    h.end_next.next(load.mux(
+        first,
         (h.end_fire & !h.end_final | level_end_push).mux(h.end_next.add(1, lb), h.end_next),
     ));
     h.fin_sent.next(start.mux(

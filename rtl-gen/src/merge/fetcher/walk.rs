@@ -7,10 +7,10 @@ use golden::merge::fetcher::fetch_err;
 use golden::merge::merge_level::unit::{level_kind, BeatLayout};
 use golden::params::bits_to_hold;
 
-use super::command::{goto, Command, FirstErr};
+use super::command::{Command, FirstErr};
 use super::parts::{check_and_move, reference, reference_code, Checked};
 use super::root_sorter::root_sorter_unit;
-use super::{nk, ph, Ctx, Ports, IN_FLIGHT};
+use super::{nk, Ctx, Ports, IN_FLIGHT};
 use crate::{Instance, Signal, Stream};
 
 /// The walk's registers, reset by each command's START.
@@ -136,7 +136,8 @@ pub(super) fn roots_stage<'m>(
         root_out & node_resp.valid & got_code.eq(0) | all_taken,
     );
     sorter.connect("in_data", all_taken.mux(end_beat, root_beat));
-    c.n_phase.when(all_taken & s_in_ready, goto(cx, ph::WALK));
+    let ready = c.roots_ready(cx);
+    c.n_phase.when(all_taken & s_in_ready, ready);
     Roots {
         sorter,
         s_in_ready,

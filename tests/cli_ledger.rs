@@ -321,6 +321,18 @@ fn a_plan_lists_the_runs_still_to_make() {
     edit(&entry, |v| v["netlist_sha256"] = "1".repeat(64).into());
     let o = hiermerge(&["ledger", "--dir", d, "--plan", p, "--missing"], &[]);
     assert_eq!(String::from_utf8_lossy(&o.stdout).lines().count(), 2);
+    // `--stale-paths` names that entry alone (what scripts/longruns removes
+    // before it reruns the line).
+    let o = hiermerge(&["ledger", "--dir", d, "--stale-paths"], &[]);
+    assert!(o.status.success());
+    assert_eq!(
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .collect::<Vec<_>>(),
+        [entry.display().to_string()]
+    );
+    let o = hiermerge(&["ledger", "--dir", d, "--stale-paths", "--json"], &[]);
+    assert_eq!(json_of(&o)["stale"].as_array().map(Vec::len), Some(1));
     // A line that is no merger run is named by file and line.
     std::fs::write(&plan, format!("{done}\n--unit translate --count 2\n")).unwrap();
     let o = hiermerge(&["ledger", "--dir", d, "--plan", p], &[]);

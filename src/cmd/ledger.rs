@@ -54,6 +54,12 @@ pub struct Args {
     /// problems (for scripts/longruns).
     #[arg(long, requires = "plan")]
     missing: bool,
+    /// Print only the paths of the stale entries (their netlist, or with
+    /// --stimulus their stimulus, changed since the run), one per line
+    /// (with --json: `{"stale": [...]}`), and exit 0 whatever the entries'
+    /// problems: what scripts/longruns removes before it reruns them.
+    #[arg(long, conflicts_with = "missing")]
+    stale_paths: bool,
     /// Exit non-zero when an entry is stale, too (by default a stale entry
     /// is reported and its configuration listed as lacking evidence).
     #[arg(long)]
@@ -88,6 +94,15 @@ struct Checked {
     netlist_current: bool,
     /// Some(whether the stimulus regenerated today has the entry's digest).
     stimulus_current: Option<bool>,
+    /// The netlist regenerated today has another digest than the entry's.
+    netlist_changed: bool,
+}
+
+impl Checked {
+    /// Its netlist or its stimulus changed since the run.
+    fn is_stale(&self) -> bool {
+        self.netlist_changed || self.stimulus_current == Some(false)
+    }
 }
 
 /// What the current, passing entries of one configuration and engine add up to.
@@ -177,6 +192,7 @@ fn check(
         passed: e.passed,
         netlist_current: false,
         stimulus_current: None,
+        netlist_changed: false,
     };
     if !e.passed {
         problems.push(format!(
@@ -218,12 +234,15 @@ fn check(
     let digest = netlists.entry(top).or_insert_with(|| run.netlist_digest());
     match digest {
         Ok(d) if *d == e.netlist_sha256 => out.netlist_current = true,
-        Ok(d) => stale.push(format!(
-            "{path}: the netlist changed since the run (netlist_sha256 {}, today {}): remove the entry and rerun `hiermerge cosim {} --ledger DIR`",
-            short(&e.netlist_sha256),
-            short(d),
-            e.args.join(" ")
-        )),
+        Ok(d) => {
+            out.netlist_changed = true;
+            stale.push(format!(
+                "{path}: the netlist changed since the run (netlist_sha256 {}, today {}): remove the entry and rerun `hiermerge cosim {} --ledger DIR` (scripts/longruns does both)",
+                short(&e.netlist_sha256),
+                short(d),
+                e.args.join(" ")
+            ))
+        }
         Err(what) => problems.push(format!("{path}: regenerating the netlist: {what}")),
     }
     if digest_stimulus {
@@ -328,6 +347,22 @@ pub fn main(a: Args) -> CmdResult {
         pb.inc(1);
     }
     pb.finish_and_clear();
+    if a.stale_paths {
+        #[derive(Serialize)]
+        struct Stale<'a> {
+            stale: Vec<&'a str>,
+        }
+        let stale = Stale {
+            stale: checked
+                .iter()
+                .filter(|c| c.is_stale())
+                .map(|c| c.path.as_str())
+                .collect(),
+        };
+        return emit(a.json, &stale, |s| {
+            s.stale.iter().for_each(|p| println!("{p}"))
+        });
+    }
     let pairs: Vec<(Entry, &Checked)> = ledger
         .iter()
         .map(|(_, e)| e.clone())

@@ -275,6 +275,30 @@ fn determines(
     Ok(dets)
 }
 
+/// The translation unit's hard determine commands (golden's
+/// `translate::stimulus::hard_cases`: placements of -0, subnormals, NaN,
+/// infinities, the largest finite values, ties at the field's limit, the
+/// scene's edges, bad extents) that the unit's `cmd` beat carries, run on
+/// `model`, with what each puts on `det_out`. They write entries of the
+/// table, some invalid; a case's own determine commands write its inputs'
+/// entries after them.
+fn hard_determines(
+    c: &HierarchyUnitConfig,
+    model: &mut TranslateModel,
+) -> Result<Vec<(TranslateInputs, TranslateOutputs)>> {
+    let cl = c.cmd_layout();
+    let mut dets = Vec::new();
+    for inp in golden::translate::stimulus::hard_cases(&c.table.unit) {
+        let carried = pack_det_in(&c.table, &inp)
+            .ok()
+            .is_some_and(|det| cl.pack_determine(&det).is_ok());
+        if carried {
+            dets.push((inp, model.determine(&inp).map_err(design_err)?));
+        }
+    }
+    Ok(dets)
+}
+
 /// The cases of a run in order: with [`Merges::Hard`], first the first
 /// hard case of two inputs or more with its first input's entry never
 /// written ([`entry_error_case`]: the merge software asks of an input it
@@ -282,7 +306,8 @@ fn determines(
 /// unwritten entry at the last rank), then golden's named hard cases of
 /// valid inputs (`hard_merges::hard_cases`: real merges, several and
 /// sixteen roots, the leaf ladder, the deep tops) and the leaf floods
-/// (`hard_merges::leaf_floods`), the first of them after
+/// (`hard_merges::leaf_floods`), the first of them after the translation
+/// unit's hard determine commands ([`hard_determines`]) and
 /// [`DETERMINE_BURST`] determine commands per input, those golden does not
 /// model bit for bit left out (`MergerTransaction::exact`: per-node mode's
 /// FIFOs dropping nodes), then random merges of `kind`.
@@ -354,12 +379,16 @@ impl Draw {
             // A case left out sends nothing, so its determine commands
             // must not stay in the model's table either.
             let before = model.clone();
-            let repeat = if self.burst { DETERMINE_BURST } else { 1 };
+            let (hard, repeat) = match self.burst {
+                true => (hard_determines(c, model)?, DETERMINE_BURST),
+                false => (Vec::new(), 1),
+            };
             let case = (&store, &table, ids.as_slice());
-            let case = repeated_case_of(&mut self.rng, c, model, case, (out_id, repeat))?;
+            let mut case = repeated_case_of(&mut self.rng, c, model, case, (out_id, repeat))?;
             if case.tx.exact {
                 self.named_drawn += 1;
                 self.burst = false;
+                case.dets.splice(0..0, hard);
                 return Ok(case);
             }
             *model = before;
@@ -820,11 +849,14 @@ mod tests {
         let next = draw.next(&c, &mut model).unwrap();
         assert_eq!(next.tx.header.fetch_err, 0);
         let inputs = next.tx.fetch.len();
-        assert_eq!(
-            next.dets.len(),
-            inputs * DETERMINE_BURST,
-            "the first named case's burst"
-        );
+        // The translation unit's hard determine commands, then the burst:
+        // some fail (`ok` 0), and the merge still reads its inputs' entries
+        // as its own determine commands wrote them.
+        let hard = golden::translate::stimulus::hard_cases(&c.table.unit).len();
+        let extra = next.dets.len() - inputs * DETERMINE_BURST;
+        assert!(extra > hard / 2 && extra <= hard, "{extra} of {hard}");
+        assert!(next.dets[..extra].iter().any(|(_, o)| o.ok == 0));
+        assert!(next.dets[extra..].iter().all(|(_, o)| o.ok == 1));
         let after = draw.next(&c, &mut model).unwrap();
         assert_eq!(after.dets.len(), after.tx.fetch.len());
         let mut random = Draw::new(&c, 1, Merges::Random).unwrap();

@@ -5,12 +5,12 @@
 module fetcher_d16_q8_i24_h4_r16_f256_pn (
     input  wire clk,                     // clock (implicit)
     input  wire rst,                     // synchronous reset, active high (implicit)
-    input  wire cfg_valid,               // rtl-gen/src/merge/fetcher/command.rs:82
-    input  wire [137:0] cfg_data,        // rtl-gen/src/merge/fetcher/command.rs:82
-    output wire cfg_ready,               // rtl-gen/src/merge/fetcher/command.rs:82
-    input  wire cmd_valid,               // rtl-gen/src/merge/fetcher/command.rs:83
-    input  wire [13:0] cmd_data,         // rtl-gen/src/merge/fetcher/command.rs:83
-    output wire cmd_ready,               // rtl-gen/src/merge/fetcher/command.rs:83
+    input  wire cfg_valid,               // rtl-gen/src/merge/fetcher/command.rs:83
+    input  wire [137:0] cfg_data,        // rtl-gen/src/merge/fetcher/command.rs:83
+    output wire cfg_ready,               // rtl-gen/src/merge/fetcher/command.rs:83
+    input  wire cmd_valid,               // rtl-gen/src/merge/fetcher/command.rs:84
+    input  wire [13:0] cmd_data,         // rtl-gen/src/merge/fetcher/command.rs:84
+    output wire cmd_ready,               // rtl-gen/src/merge/fetcher/command.rs:84
     input  wire node_resp_valid,         // rtl-gen/src/merge/fetcher/mod.rs:156
     input  wire [149:0] node_resp_data,  // rtl-gen/src/merge/fetcher/mod.rs:156
     output wire node_resp_ready,         // rtl-gen/src/merge/fetcher/mod.rs:156
@@ -46,11 +46,11 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     input  wire probe_req_ready,         // rtl-gen/src/merge/fetcher/mod.rs:269
     output wire idle                     // rtl-gen/src/merge/fetcher/mod.rs:271
 );
-    localparam [2:0] IDLE = 3'd0;            // rtl-gen/src/merge/fetcher/command.rs:79
-    localparam [2:0] START = 3'd1;           // rtl-gen/src/merge/fetcher/command.rs:71
-    localparam [2:0] ROOTS = 3'd2;           // rtl-gen/src/merge/fetcher/command.rs:79
-    localparam [2:0] WALK = 3'd3;            // rtl-gen/src/merge/fetcher/command.rs:79
-    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/fetcher/command.rs:71
+    localparam [2:0] IDLE = 3'd0;            // rtl-gen/src/merge/fetcher/command.rs:80
+    localparam [2:0] START = 3'd1;           // rtl-gen/src/merge/fetcher/command.rs:72
+    localparam [2:0] ROOTS = 3'd2;           // rtl-gen/src/merge/fetcher/command.rs:80
+    localparam [2:0] WALK = 3'd3;            // rtl-gen/src/merge/fetcher/command.rs:80
+    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/fetcher/command.rs:72
     reg [72:0] frontier [0:1023];            // rtl-gen/src/merge/fetcher/walk.rs:175
     reg [24:0] range_ref_ctx [0:7];          // rtl-gen/src/merge/fetcher/walk.rs:200
     reg [33:0] ref_stage_node_ctx [0:7];     // rtl-gen/src/merge/fetcher/walk.rs:250
@@ -58,47 +58,47 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     reg [119:0] visit_pass [0:255];          // rtl-gen/src/merge/fetcher/visit.rs:316
     reg [186:0] order_tokens [0:3];          // rtl-gen/src/merge/fetcher/order.rs:50
     reg [186:0] out_probes [0:7];            // rtl-gen/src/merge/fetcher/out.rs:153
-    reg [2:0] phase;                         // rtl-gen/src/merge/fetcher/command.rs:77
-    reg cfg_have;                            // rtl-gen/src/merge/fetcher/command.rs:84
-    wire is_idle;                            // rtl-gen/src/merge/fetcher/command.rs:79
-    wire cfg_fire;                           // rtl-gen/src/merge/fetcher/command.rs:96
-    wire cmd_fire;                           // rtl-gen/src/merge/fetcher/command.rs:97
-    reg [3:0] cfg_hier;                      // rtl-gen/src/merge/fetcher/command.rs:105
-    wire [3:0] cfg_data_hier;                // rtl-gen/src/merge/fetcher/command.rs:106
-    reg [23:0] cfg_roots;                    // rtl-gen/src/merge/fetcher/command.rs:105
-    wire [23:0] cfg_data_roots;              // rtl-gen/src/merge/fetcher/command.rs:106
-    reg [4:0] cfg_top;                       // rtl-gen/src/merge/fetcher/command.rs:105
-    wire [4:0] cfg_data_top;                 // rtl-gen/src/merge/fetcher/command.rs:106
-    reg [23:0] cfg_nodes;                    // rtl-gen/src/merge/fetcher/command.rs:105
-    wire [23:0] cfg_data_nodes;              // rtl-gen/src/merge/fetcher/command.rs:106
-    reg [23:0] cfg_refs;                     // rtl-gen/src/merge/fetcher/command.rs:105
-    wire [23:0] cfg_data_refs;               // rtl-gen/src/merge/fetcher/command.rs:106
-    reg cfg_entry_valid;                     // rtl-gen/src/merge/fetcher/command.rs:105
-    wire cfg_data_entry_valid;               // rtl-gen/src/merge/fetcher/command.rs:106
-    reg [4:0] cfg_entry_lod;                 // rtl-gen/src/merge/fetcher/command.rs:105
-    wire [4:0] cfg_data_entry_lod;           // rtl-gen/src/merge/fetcher/command.rs:106
-    reg [16:0] cfg_entry_t0;                 // rtl-gen/src/merge/fetcher/command.rs:105
-    wire [16:0] cfg_data_entry_tx;           // rtl-gen/src/merge/fetcher/command.rs:106
-    reg [16:0] cfg_entry_t1;                 // rtl-gen/src/merge/fetcher/command.rs:105
-    wire [16:0] cfg_data_entry_ty;           // rtl-gen/src/merge/fetcher/command.rs:106
-    reg [16:0] cfg_entry_t2;                 // rtl-gen/src/merge/fetcher/command.rs:105
-    wire [16:0] cfg_data_entry_tz;           // rtl-gen/src/merge/fetcher/command.rs:106
-    wire entry_ok;                           // rtl-gen/src/merge/fetcher/command.rs:126
-    reg [4:0] cmd_lod;                       // rtl-gen/src/merge/fetcher/command.rs:130
-    reg cmd_send_refs;                       // rtl-gen/src/merge/fetcher/command.rs:131
-    reg cmd_send_leaves;                     // rtl-gen/src/merge/fetcher/command.rs:132
-    reg cmd_last;                            // rtl-gen/src/merge/fetcher/command.rs:133
-    wire [4:0] cmd_data_lod;                 // rtl-gen/src/merge/fetcher/command.rs:134
-    wire cmd_data_send_refs;                 // rtl-gen/src/merge/fetcher/command.rs:135
-    wire cmd_data_send_leaves;               // rtl-gen/src/merge/fetcher/command.rs:136
-    wire cmd_data_last;                      // rtl-gen/src/merge/fetcher/command.rs:137
-    reg [4:0] cmd_first;                     // rtl-gen/src/merge/fetcher/command.rs:139
-    wire [4:0] cmd_data_from;                // rtl-gen/src/merge/fetcher/command.rs:140
-    reg cmd_per_node;                        // rtl-gen/src/merge/fetcher/command.rs:145
-    wire cmd_data_per_node;                  // rtl-gen/src/merge/fetcher/command.rs:146
-    wire walking;                            // rtl-gen/src/merge/fetcher/command.rs:79
-    wire phase_eq;                           // rtl-gen/src/merge/fetcher/command.rs:79
-    wire phase_eq_1;                         // rtl-gen/src/merge/fetcher/command.rs:79
+    reg [2:0] phase;                         // rtl-gen/src/merge/fetcher/command.rs:78
+    reg cfg_have;                            // rtl-gen/src/merge/fetcher/command.rs:85
+    wire is_idle;                            // rtl-gen/src/merge/fetcher/command.rs:80
+    wire cfg_fire;                           // rtl-gen/src/merge/fetcher/command.rs:97
+    wire cmd_fire;                           // rtl-gen/src/merge/fetcher/command.rs:98
+    reg [3:0] cfg_hier;                      // rtl-gen/src/merge/fetcher/command.rs:106
+    wire [3:0] cfg_data_hier;                // rtl-gen/src/merge/fetcher/command.rs:107
+    reg [23:0] cfg_roots;                    // rtl-gen/src/merge/fetcher/command.rs:106
+    wire [23:0] cfg_data_roots;              // rtl-gen/src/merge/fetcher/command.rs:107
+    reg [4:0] cfg_top;                       // rtl-gen/src/merge/fetcher/command.rs:106
+    wire [4:0] cfg_data_top;                 // rtl-gen/src/merge/fetcher/command.rs:107
+    reg [23:0] cfg_nodes;                    // rtl-gen/src/merge/fetcher/command.rs:106
+    wire [23:0] cfg_data_nodes;              // rtl-gen/src/merge/fetcher/command.rs:107
+    reg [23:0] cfg_refs;                     // rtl-gen/src/merge/fetcher/command.rs:106
+    wire [23:0] cfg_data_refs;               // rtl-gen/src/merge/fetcher/command.rs:107
+    reg cfg_entry_valid;                     // rtl-gen/src/merge/fetcher/command.rs:106
+    wire cfg_data_entry_valid;               // rtl-gen/src/merge/fetcher/command.rs:107
+    reg [4:0] cfg_entry_lod;                 // rtl-gen/src/merge/fetcher/command.rs:106
+    wire [4:0] cfg_data_entry_lod;           // rtl-gen/src/merge/fetcher/command.rs:107
+    reg [16:0] cfg_entry_t0;                 // rtl-gen/src/merge/fetcher/command.rs:106
+    wire [16:0] cfg_data_entry_tx;           // rtl-gen/src/merge/fetcher/command.rs:107
+    reg [16:0] cfg_entry_t1;                 // rtl-gen/src/merge/fetcher/command.rs:106
+    wire [16:0] cfg_data_entry_ty;           // rtl-gen/src/merge/fetcher/command.rs:107
+    reg [16:0] cfg_entry_t2;                 // rtl-gen/src/merge/fetcher/command.rs:106
+    wire [16:0] cfg_data_entry_tz;           // rtl-gen/src/merge/fetcher/command.rs:107
+    wire entry_ok;                           // rtl-gen/src/merge/fetcher/command.rs:127
+    reg [4:0] cmd_lod;                       // rtl-gen/src/merge/fetcher/command.rs:131
+    reg cmd_send_refs;                       // rtl-gen/src/merge/fetcher/command.rs:132
+    reg cmd_send_leaves;                     // rtl-gen/src/merge/fetcher/command.rs:133
+    reg cmd_last;                            // rtl-gen/src/merge/fetcher/command.rs:134
+    wire [4:0] cmd_data_lod;                 // rtl-gen/src/merge/fetcher/command.rs:135
+    wire cmd_data_send_refs;                 // rtl-gen/src/merge/fetcher/command.rs:136
+    wire cmd_data_send_leaves;               // rtl-gen/src/merge/fetcher/command.rs:137
+    wire cmd_data_last;                      // rtl-gen/src/merge/fetcher/command.rs:138
+    reg [4:0] cmd_first;                     // rtl-gen/src/merge/fetcher/command.rs:140
+    wire [4:0] cmd_data_from;                // rtl-gen/src/merge/fetcher/command.rs:141
+    reg cmd_per_node;                        // rtl-gen/src/merge/fetcher/command.rs:146
+    wire cmd_data_per_node;                  // rtl-gen/src/merge/fetcher/command.rs:147
+    wire walking;                            // rtl-gen/src/merge/fetcher/command.rs:80
+    wire phase_eq;                           // rtl-gen/src/merge/fetcher/command.rs:80
+    wire phase_eq_1;                         // rtl-gen/src/merge/fetcher/command.rs:80
     wire node_req_core_valid;                // rtl-gen/src/merge/fetcher/mod.rs:151
     wire [23:0] node_req_core_data;          // rtl-gen/src/merge/fetcher/mod.rs:151
     wire node_req_core_ready;                // rtl-gen/src/merge/fetcher/mod.rs:151
@@ -114,14 +114,14 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire leaves_core_valid;                  // rtl-gen/src/merge/fetcher/mod.rs:155
     wire [183:0] leaves_core_data;           // rtl-gen/src/merge/fetcher/mod.rs:155
     wire leaves_core_ready;                  // rtl-gen/src/merge/fetcher/mod.rs:155
-    wire roots_bad;                          // rtl-gen/src/merge/fetcher/command.rs:212
-    wire roots_over;                         // rtl-gen/src/merge/fetcher/command.rs:216
-    wire [3:0] header_code;                  // rtl-gen/src/merge/fetcher/command.rs:220
-    wire header_code_ne;                     // rtl-gen/src/merge/fetcher/command.rs:229
-    reg first_err_valid;                     // rtl-gen/src/merge/fetcher/command.rs:233
-    reg [3:0] first_err_code;                // rtl-gen/src/merge/fetcher/command.rs:234
-    reg [23:0] first_err_node;               // rtl-gen/src/merge/fetcher/command.rs:235
-    reg header_err;                          // rtl-gen/src/merge/fetcher/command.rs:236
+    wire roots_bad;                          // rtl-gen/src/merge/fetcher/command.rs:213
+    wire roots_over;                         // rtl-gen/src/merge/fetcher/command.rs:217
+    wire [3:0] header_code;                  // rtl-gen/src/merge/fetcher/command.rs:221
+    wire header_code_ne;                     // rtl-gen/src/merge/fetcher/command.rs:230
+    reg first_err_valid;                     // rtl-gen/src/merge/fetcher/command.rs:234
+    reg [3:0] first_err_code;                // rtl-gen/src/merge/fetcher/command.rs:235
+    reg [23:0] first_err_node;               // rtl-gen/src/merge/fetcher/command.rs:236
+    reg header_err;                          // rtl-gen/src/merge/fetcher/command.rs:237
     reg [4:0] level;                         // rtl-gen/src/merge/fetcher/walk.rs:42
     reg at_top;                              // rtl-gen/src/merge/fetcher/walk.rs:43
     reg walk_done;                           // rtl-gen/src/merge/fetcher/walk.rs:44
@@ -1049,12 +1049,12 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
         end else begin
             if (cmd_fire) begin
                 phase <= START;              // rtl-gen/src/merge/fetcher/parts.rs:31
-                cmd_lod <= cmd_data_lod;     // rtl-gen/src/merge/fetcher/command.rs:134
-                cmd_send_refs <= cmd_data_send_refs; // rtl-gen/src/merge/fetcher/command.rs:135
-                cmd_send_leaves <= cmd_data_send_leaves; // rtl-gen/src/merge/fetcher/command.rs:136
-                cmd_last <= cmd_data_last;   // rtl-gen/src/merge/fetcher/command.rs:137
-                cmd_first <= cmd_data_per_node ? cmd_data_lod : ((cmd_data_from > cmd_data_lod) ? cmd_data_lod : cmd_data_from); // rtl-gen/src/merge/fetcher/command.rs:153
-                cmd_per_node <= cmd_data_per_node; // rtl-gen/src/merge/fetcher/command.rs:146
+                cmd_lod <= cmd_data_lod;     // rtl-gen/src/merge/fetcher/command.rs:135
+                cmd_send_refs <= cmd_data_send_refs; // rtl-gen/src/merge/fetcher/command.rs:136
+                cmd_send_leaves <= cmd_data_send_leaves; // rtl-gen/src/merge/fetcher/command.rs:137
+                cmd_last <= cmd_data_last;   // rtl-gen/src/merge/fetcher/command.rs:138
+                cmd_first <= cmd_data_per_node ? cmd_data_lod : ((cmd_data_from > cmd_data_lod) ? cmd_data_lod : cmd_data_from); // rtl-gen/src/merge/fetcher/command.rs:154
+                cmd_per_node <= cmd_data_per_node; // rtl-gen/src/merge/fetcher/command.rs:147
             end else if (phase_eq) begin
                 phase <= header_code_ne ? WALK : ROOTS; // rtl-gen/src/merge/fetcher/parts.rs:31
             end else if (roots_all_taken & u_root_sorter_in_ready) begin
@@ -1068,16 +1068,16 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
             end
             if (cfg_fire) begin
                 cfg_have <= 1'b1;            // rtl-gen/src/merge/fetcher/mod.rs:251
-                cfg_hier <= cfg_data_hier;   // rtl-gen/src/merge/fetcher/command.rs:106
-                cfg_roots <= cfg_data_roots; // rtl-gen/src/merge/fetcher/command.rs:106
-                cfg_top <= cfg_data_top;     // rtl-gen/src/merge/fetcher/command.rs:106
-                cfg_nodes <= cfg_data_nodes; // rtl-gen/src/merge/fetcher/command.rs:106
-                cfg_refs <= cfg_data_refs;   // rtl-gen/src/merge/fetcher/command.rs:106
-                cfg_entry_valid <= cfg_data_entry_valid; // rtl-gen/src/merge/fetcher/command.rs:106
-                cfg_entry_lod <= cfg_data_entry_lod; // rtl-gen/src/merge/fetcher/command.rs:106
-                cfg_entry_t0 <= cfg_data_entry_tx; // rtl-gen/src/merge/fetcher/command.rs:106
-                cfg_entry_t1 <= cfg_data_entry_ty; // rtl-gen/src/merge/fetcher/command.rs:106
-                cfg_entry_t2 <= cfg_data_entry_tz; // rtl-gen/src/merge/fetcher/command.rs:106
+                cfg_hier <= cfg_data_hier;   // rtl-gen/src/merge/fetcher/command.rs:107
+                cfg_roots <= cfg_data_roots; // rtl-gen/src/merge/fetcher/command.rs:107
+                cfg_top <= cfg_data_top;     // rtl-gen/src/merge/fetcher/command.rs:107
+                cfg_nodes <= cfg_data_nodes; // rtl-gen/src/merge/fetcher/command.rs:107
+                cfg_refs <= cfg_data_refs;   // rtl-gen/src/merge/fetcher/command.rs:107
+                cfg_entry_valid <= cfg_data_entry_valid; // rtl-gen/src/merge/fetcher/command.rs:107
+                cfg_entry_lod <= cfg_data_entry_lod; // rtl-gen/src/merge/fetcher/command.rs:107
+                cfg_entry_t0 <= cfg_data_entry_tx; // rtl-gen/src/merge/fetcher/command.rs:107
+                cfg_entry_t1 <= cfg_data_entry_ty; // rtl-gen/src/merge/fetcher/command.rs:107
+                cfg_entry_t2 <= cfg_data_entry_tz; // rtl-gen/src/merge/fetcher/command.rs:107
             end else if (phase_eq_2 & cmd_last) begin
                 cfg_have <= 1'b0;            // rtl-gen/src/merge/fetcher/mod.rs:251
             end
@@ -1085,7 +1085,7 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 first_err_valid <= header_code_ne; // rtl-gen/src/merge/fetcher/parts.rs:31
                 first_err_code <= header_code; // rtl-gen/src/merge/fetcher/parts.rs:31
                 first_err_node <= 24'd0;     // rtl-gen/src/merge/fetcher/parts.rs:31
-                header_err <= header_code_ne; // rtl-gen/src/merge/fetcher/command.rs:249
+                header_err <= header_code_ne; // rtl-gen/src/merge/fetcher/command.rs:250
                 level <= cfg_top;            // rtl-gen/src/merge/fetcher/visit.rs:357
                 at_top <= 1'b1;              // rtl-gen/src/merge/fetcher/visit.rs:359
                 walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher/visit.rs:361

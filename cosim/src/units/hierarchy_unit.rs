@@ -307,7 +307,7 @@ fn hard_determines(
 /// valid inputs (`hard_merges::hard_cases`: real merges, several and
 /// sixteen roots, the leaf ladder, the deep tops) and the leaf floods
 /// (`hard_merges::leaf_floods`), the first of them after the translation
-/// unit's hard determine commands ([`hard_determines`]) and
+/// unit's hard determine commands (`hard_determines`) and
 /// [`DETERMINE_BURST`] determine commands per input, those golden does not
 /// model bit for bit left out (`MergerTransaction::exact`: per-node mode's
 /// FIFOs dropping nodes), then random merges of `kind`.

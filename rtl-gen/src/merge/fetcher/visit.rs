@@ -322,9 +322,9 @@ pub(super) fn visit_checks<'m>(
     let level_end_push = (marker & h.end_next.eq(v_d)).name("level_end_push");
     // With PREFETCH a command's START comes before it is taken, so the
     // first level owed is loaded as it is taken.
-    let (load, first) = match c.in_hand {
-        Some(_) => (c.cmd_fire, c.first_in),
-        None => (start, c.first),
+    let (load, first) = match super::command::prefetches(cx) {
+        true => (c.cmd_fire, c.first_in),
+        false => (start, c.first),
     };
     h.end_next.next(load.mux(
         first,

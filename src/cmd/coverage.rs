@@ -152,18 +152,19 @@ const FLOORS: [(&str, Aims); 3] = [
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6",
         // What CI's run measures with the hard merges of
-        // `golden::vectors::hard_merges` (95.3% / 60.0%), rounded down.
+        // `golden::vectors::hard_merges`, the capacity clusters among them
+        // (95.3% / 60.9%), rounded down.
         Aims {
             line: 95.0,
-            toggle: 59.5,
+            toggle: 60.5,
         },
     ),
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_pn1_2_r16_f256_c5_l6",
-        // Likewise, `report` held in runs of 64, two seeds (95.1% / 61.3%).
+        // Likewise, `report` held in runs of 64, two seeds (95.1% / 61.9%).
         Aims {
             line: 95.0,
-            toggle: 61.0,
+            toggle: 61.5,
         },
     ),
     (
@@ -172,10 +173,10 @@ const FLOORS: [(&str, Aims); 3] = [
         // cases (the first after a burst of determine commands) and both
         // leaf floods, then hard-kind random merges, placements a fraction
         // off the grid, the translation unit's hard determine commands
-        // before the first named case (95.2% / 64.7%).
+        // before the first named case (95.4% / 65.4%).
         Aims {
             line: 95.0,
-            toggle: 64.5,
+            toggle: 65.0,
         },
     ),
 ];

@@ -85,6 +85,7 @@ pub fn build_model(
         .add("fst", &[options.fst as u8])
         .add("coverage", &[options.coverage as u8])
         .add("cxx_opt", options.cxx_opt.as_bytes())
+        .add("slow_opt", SLOW_OPT.as_bytes())
         .add("top", design.top.as_bytes())
         .add("ports", format!("{:?}", design.ports).as_bytes());
     for f in &options.verilator_flags {

@@ -77,7 +77,8 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// at every LOD above the merging level, an input stored depth first
 /// with indices near `2^I`, three merges of two inputs under LOD-0 roots
 /// (the merged top at LOD 0), the deep tops and the deep clusters, each
-/// through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
+/// through `d`'s mode, and at their end the capacity clusters ([`capacity_clusters`]: levels of
+/// hundreds of nodes, which a writer of `2^5` entries a buffer refuses); per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it, and one whose first input's
 /// entry is invalid; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`), on
@@ -118,6 +119,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     for (store, table, ids) in deep_cases(p)?
         .iter()
         .chain(&floods)
+        .chain(&capacity_clusters(p)?)
         .filter(|c| c.2.len() <= k)
     {
         let tx =
@@ -170,7 +172,7 @@ pub fn out_id(p: &Params) -> u8 {
 /// The named cases of [`hard_merges`] whose inputs are all valid, in its
 /// order: the real cases, an input filling the scene, the 16-root input,
 /// the leaf ladder, the depth-first store, the sixteen deep roots, the
-/// deep tops and clusters, those of at most `k` inputs (what
+/// deep tops and clusters, the capacity clusters, those of at most `k` inputs (what
 /// the hierarchy unit's hard merges write into its table by determine
 /// commands: a case's translations are its table's).
 pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
@@ -183,6 +185,7 @@ pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
     cases.extend(sixteen_deep_roots(p)?);
     cases.extend(lod0_tops(p)?);
     cases.extend(deep_cases(p)?);
+    cases.extend(capacity_clusters(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= d.inputs);
     Ok(cases)
 }
@@ -282,12 +285,41 @@ fn deep_tops(p: &Params) -> Result<Vec<RealCase>> {
 /// tops' single triangles write one. (At `c = D - 1` the merging level is
 /// `D - 1` too, and its one created node is all that is written.)
 fn deep_clusters(p: &Params) -> Result<Vec<RealCase>> {
+    let lods = p.max_lod.saturating_sub(4).max(1)..p.max_lod.saturating_sub(1);
+    clusters(p, lods, 8, [31, 32])
+}
+
+/// Per `c` in `D - 5..D` (`c >= 1`), two soups of 128 triangles filling
+/// the same LOD-`c` voxel: hundreds of nodes an input, far more a level
+/// than any other case, so the indices within a level, the records'
+/// `first` and `count` and the builder's and the writer's level counters
+/// set their upper bits. Where a level holds more than the writer's `2^C`
+/// entries the writer refuses the merge (`CAPACITY`), after the fetchers,
+/// the module and the builder have run it whole.
+fn capacity_clusters(p: &Params) -> Result<Vec<RealCase>> {
+    clusters(
+        p,
+        p.max_lod.saturating_sub(5).max(1)..p.max_lod,
+        128,
+        [41, 42],
+    )
+}
+
+/// Per `c` in `lods`, a case of two soups of `triangles` triangles each
+/// (drawn from `seeds`) in the LOD-`c` voxel at the scene's corner.
+fn clusters(
+    p: &Params,
+    lods: std::ops::Range<u8>,
+    triangles: usize,
+    seeds: [u64; 2],
+) -> Result<Vec<RealCase>> {
     let mut out = Vec::new();
-    for c in p.max_lod.saturating_sub(4).max(1)..p.max_lod.saturating_sub(1) {
+    for c in lods {
         let grid = corner_grid(p, c);
         let mut inputs = Vec::new();
-        for (id, seed) in [(1u8, 31u64), (2, 32)] {
-            let h = build(&random_soup(8, 0.3, seed), &grid, p, id).map_err(golden_err)?;
+        for (id, seed) in [(1u8, seeds[0]), (2, seeds[1])] {
+            let soup = random_soup(triangles, 0.3, seed);
+            let h = build(&soup, &grid, p, id).map_err(golden_err)?;
             inputs.push((h.clone(), Translation::zero(h.top_lod)));
         }
         out.push(case_of(p, inputs)?);
@@ -864,6 +896,7 @@ fn check_cfg_errors(
 mod tests {
     use super::*;
     use crate::merge::merge_level::{BaseKind, BaseNode};
+    use crate::merge::record_writer::writer_err;
     use crate::merge::MergeMode;
 
     /// The merge of `case` (two inputs) with leaf FIFOs of `2^leaf_bits`
@@ -1048,6 +1081,39 @@ mod tests {
                 assert_eq!((w.top, w.err), (c, 0), "{at}");
                 assert!(w.nodes >= 4, "{at}");
             }
+        }
+    }
+
+    /// The capacity clusters' inputs hold hundreds of nodes (indices past
+    /// `2^8`). At the coverage configuration (D = 8, a writer of `2^5`
+    /// entries a buffer) the writer refuses the four of `c` 3 to 6 with
+    /// `CAPACITY`, each a merge golden models exactly; at the default's
+    /// writer (`2^8`) every one is written, its top at its cluster's LOD.
+    #[test]
+    fn capacity_clusters_fill_levels_past_the_small_writer() {
+        let small = Params::new(8, 0, 12, 3).unwrap();
+        let mode = MergeMode::Overlap { num: 1, den: 2 };
+        for (p, cap, refused) in [(small, 5, 4), (Params::default(), 8, 0)] {
+            let mut sizes = MergerSizes::new(&p);
+            sizes.capacity_bits = cap;
+            let cases = capacity_clusters(&p).unwrap();
+            assert_eq!(cases.len(), 5, "D = {}", p.max_lod);
+            let mut n_refused = 0;
+            for (c, (store, table, ids)) in (p.max_lod - 5..).zip(&cases) {
+                let tx = merger_transaction(store, table, ids, mode, 7, 2, sizes).unwrap();
+                let w = &tx.header.writer;
+                let at = format!("D = {} c = {c}: {w:?}", p.max_lod);
+                assert!(tx.exact, "{at}");
+                if w.err == writer_err::CAPACITY {
+                    n_refused += 1;
+                    assert_eq!((w.nodes, w.refs), (0, 0), "{at}");
+                } else {
+                    assert_eq!((w.err, w.top), (0, c), "{at}");
+                }
+            }
+            assert_eq!(n_refused, refused, "D = {}", p.max_lod);
+            let biggest = cases[0].0.get(1).map_or(0, |h| h.nodes.len());
+            assert!(biggest > 256, "{biggest} nodes");
         }
     }
 

@@ -77,7 +77,7 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// at every LOD above the merging level, an input stored depth first
 /// with indices near `2^I`, three merges of two inputs under LOD-0 roots
 /// (the merged top at LOD 0), the deep tops and the deep clusters, each
-/// through `d`'s mode, and at their end the capacity clusters ([`capacity_clusters`]: levels of
+/// through `d`'s mode, and at their end the capacity clusters (`capacity_clusters`: levels of
 /// hundreds of nodes, which a writer of `2^5` entries a buffer refuses); per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it, and one whose first input's
 /// entry is invalid; and two bad ranges from

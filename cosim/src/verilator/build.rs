@@ -153,7 +153,8 @@ fn build_into(
     let slow = units_of(["VM_CLASSES_SLOW", "VM_SUPPORT_SLOW"]);
     // The slow units (constructors, reset, the first evaluation) run once
     // per model, yet are four tenths of the code: built without
-    // optimization they halve no simulation and save a third of the build.
+    // optimization they cost the simulation nothing measurable and save a
+    // quarter of the build (cosim/README.md).
     let fast_args = flags.compile_args(&obj, &options.cxx_opt);
     let slow_args = flags.compile_args(&obj, SLOW_OPT);
     let mut jobs: Vec<(PathBuf, &[String])> = Vec::new();

@@ -77,9 +77,10 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// at every LOD above the merging level, an input stored depth first
 /// with indices near `2^I`, three merges of two inputs under LOD-0 roots
 /// (the merged top at LOD 0), the deep tops and the deep clusters, each
-/// through `d`'s mode, and at their end the capacity clusters (`capacity_clusters`: levels of
-/// hundreds of nodes, which a writer of `2^5` entries a buffer refuses); per code of [`CFG_ERRORS`] a merge whose last
-/// input's `cfg` makes its fetcher refuse it, and one whose first input's
+/// through `d`'s mode, and at their end the capacity clusters
+/// (`capacity_clusters`: levels of hundreds of nodes, which a writer of
+/// `2^5` entries a buffer refuses); per code of [`CFG_ERRORS`] a merge
+/// whose last input's `cfg` makes its fetcher refuse it, and one whose first input's
 /// entry is invalid; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`), on
 /// the first case of the most inputs; and a flood of leaves ([`leaf_flood`])
@@ -172,8 +173,8 @@ pub fn out_id(p: &Params) -> u8 {
 /// The named cases of [`hard_merges`] whose inputs are all valid, in its
 /// order: the real cases, an input filling the scene, the 16-root input,
 /// the leaf ladder, the depth-first store, the sixteen deep roots, the
-/// deep tops and clusters, the capacity clusters, those of at most `k` inputs (what
-/// the hierarchy unit's hard merges write into its table by determine
+/// deep tops and clusters, the capacity clusters, those of at most `k`
+/// inputs (what the hierarchy unit's hard merges write into its table by determine
 /// commands: a case's translations are its table's).
 pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
     let p = &d.params;

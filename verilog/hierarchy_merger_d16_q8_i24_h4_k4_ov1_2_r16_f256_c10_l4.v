@@ -11,90 +11,90 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:123
     output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:131
     output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:132
-    input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f0_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f0_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f0_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f0_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f0_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f0_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f0_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f0_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f0_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f1_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f1_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f1_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f1_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f1_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f1_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f1_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f1_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f1_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f1_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f2_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f2_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f2_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f2_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f2_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f2_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f2_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f2_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f2_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f2_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f3_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f3_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f3_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f3_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f3_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f3_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f3_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f3_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f3_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f3_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire w_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] w_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:423
-    output wire w_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:423
-    output wire w_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [27:0] w_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire w_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire nodes_valid,               // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [149:0] nodes_data,        // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire nodes_ready,               // rtl-gen/src/merge/merger/mod.rs:420
-    output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:420
+    input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f0_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f0_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f0_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f0_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f0_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f0_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f0_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f0_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f0_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f1_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f1_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f1_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f1_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f1_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f1_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f1_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f1_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f1_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f1_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f2_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f2_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f2_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f2_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f2_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f2_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f2_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f2_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f2_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f2_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f3_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f3_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f3_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f3_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f3_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f3_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f3_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f3_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f3_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f3_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire w_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] w_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:435
+    output wire w_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:435
+    output wire w_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [27:0] w_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire w_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire nodes_valid,               // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [149:0] nodes_data,        // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire nodes_ready,               // rtl-gen/src/merge/merger/mod.rs:432
+    output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:432
     output wire w_filling,                 // rtl-gen/src/merge/merger/tail.rs:111
     output wire w_drain_records,           // rtl-gen/src/merge/merger/tail.rs:111
     output wire w_drain_refs,              // rtl-gen/src/merge/merger/tail.rs:111
@@ -302,14 +302,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire u_module_chosen;                    // rtl-gen/src/merge/merger/mod.rs:141
     wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:282
     wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:291
-    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:300
-    wire busy_and_1;                         // rtl-gen/src/merge/merger/mod.rs:300
-    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:300
-    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:300
-    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:300
-    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:300
-    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:304
-    wire flags_hold;                         // rtl-gen/src/merge/merger/mod.rs:320
+    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:309
+    wire busy_and_1;                         // rtl-gen/src/merge/merger/mod.rs:311
+    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:309
+    wire busy_and_2;                         // rtl-gen/src/merge/merger/mod.rs:311
+    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:309
+    wire busy_and_3;                         // rtl-gen/src/merge/merger/mod.rs:309
+    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:309
+    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:311
+    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:316
+    wire flags_hold;                         // rtl-gen/src/merge/merger/mod.rs:332
     wire [2:0] cfg_data_count;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [2:0] cfg_q_count;                  // rtl-gen/src/merge/merger/mod.rs:141
     wire [4:0] lo;                           // rtl-gen/src/merge/merger/mod.rs:141
@@ -360,9 +362,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:246
     wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:258
     wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:260
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
     reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
     reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:206
@@ -382,9 +384,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:241
     wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:242
     wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
     reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:201
     reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:206
@@ -404,9 +406,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:241
     wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:242
     wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
     reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:201
     reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:206
@@ -425,9 +427,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:239
     wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:241
     wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     reg [3:0] fetch_err_header;              // rtl-gen/src/merge/merger/mod.rs:228
     reg [1:0] fetch_rank_header;             // rtl-gen/src/merge/merger/mod.rs:228
     reg leaves_done;                         // rtl-gen/src/merge/merger/leaf_merge.rs:45
@@ -473,350 +475,348 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:338
     wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:338
     wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:339
-    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/level_mode.rs:357
-    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
+    reg leaf_overflow;                       // rtl-gen/src/merge/merger/level_mode.rs:360
+    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves0_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves0_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves0_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves0_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves0_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves0_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves0_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves0_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves1_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves1_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves1_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves1_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves1_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves1_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves1_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves1_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves2_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves2_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves2_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves2_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves2_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves2_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves2_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves2_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:398
-    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:401
+    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves3_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves3_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves3_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves3_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves3_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves3_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves3_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves3_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:399
-    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves4_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves4_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves4_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves4_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves4_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves4_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves4_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves4_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves5_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves5_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves5_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves5_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves5_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves5_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves5_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves5_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:398
-    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:401
+    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves6_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves6_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves6_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves6_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves6_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves6_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves6_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves6_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves7_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves7_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves7_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves7_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves7_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves7_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves7_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves7_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:399
-    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves8_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves8_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves8_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves8_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves8_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves8_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves8_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves8_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:398
-    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:401
+    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves9_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves9_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves9_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves9_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves9_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves9_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves9_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves9_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves10_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves10_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves10_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves10_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves10_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves10_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves10_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves10_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves11_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves11_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves11_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves11_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves11_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves11_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves11_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves11_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:398
-    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:399
-    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves12_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves12_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves12_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves12_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves12_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves12_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves12_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves12_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves13_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves13_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves13_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves13_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves13_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves13_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves13_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves13_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves14_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves14_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves14_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves14_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves14_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves14_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves14_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves14_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:398
-    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:401
+    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
     reg [4:0] leaves15_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves15_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves15_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves15_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
     wire leaves15_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves15_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
     wire [149:0] leaves15_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves15_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:399
-    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:389
-    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:389
-    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:398
-    reg leaf_overflow_header;                // rtl-gen/src/merge/merger/mod.rs:228
-    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:404
-    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:403
-    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:412
-    reg count_overflow_header;               // rtl-gen/src/merge/merger/mod.rs:228
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:417
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:417
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:417
+    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:392
+    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:392
+    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:405
+    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:414
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:429
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:429
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:429
     wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:120
     wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:123
     wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:127
@@ -833,11 +833,13 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign busy_and = ((((busy & header_open) & queued_not) & (~module_cfg_pending)) & (~writer_cfg_pending)) & (~(u_module_report_valid & u_module_chosen));
     assign busy_not = ~busy;
     assign dropping0_not = ~dropping0;
-    assign busy_and_1 = (((((busy_not & queued_not) & (~header_open)) | busy_and) & u_module_idle) & u_fetch0_idle) & dropping0_not;
+    assign busy_and_1 = (((((busy_not & queued_not) & (~header_open)) | busy_and) & u_fetch0_idle) & dropping0_not) & (~u_fetch0_out_valid);
     assign dropping1_not = ~dropping1;
+    assign busy_and_2 = ((((busy_and_1 & (~u_fetch0_leaves_valid)) & u_fetch1_idle) & dropping1_not) & (~u_fetch1_out_valid)) & (~u_fetch1_leaves_valid);
     assign dropping2_not = ~dropping2;
+    assign busy_and_3 = ((((busy_and_2 & u_fetch2_idle) & dropping2_not) & (~u_fetch2_out_valid)) & (~u_fetch2_leaves_valid)) & u_fetch3_idle;
     assign dropping3_not = ~dropping3;
-    assign quiet = (((((busy_and_1 & u_fetch1_idle) & dropping1_not) & u_fetch2_idle) & dropping2_not) & u_fetch3_idle) & dropping3_not;
+    assign quiet = ((busy_and_3 & dropping3_not) & (~u_fetch3_out_valid)) & (~u_fetch3_leaves_valid);
     assign flags_hold = (header_hold & queued_not) & (~cfg_fire);
     assign cfg_data_count = cfg_data[554:552];
     assign cfg_q_count = cfg_q[554:552];
@@ -1324,7 +1326,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign merge_settled = (busy & commands_sent) & dropping0_and;
     assign header_offered = u_writer_header_valid & header_open;
     assign header_valid = header_offered;
-    assign header_data = {queued ? fetch_rank_header : fetch_rank, queued ? fetch_err_header : fetch_err, queued ? count_overflow_header : count_overflow, queued ? leaf_overflow_header : leaf_overflow_q, u_writer_header_data};
+    assign header_data = {queued ? fetch_rank_header : fetch_rank, queued ? fetch_err_header : fetch_err, count_overflow, leaf_overflow, u_writer_header_data};
     assign done = done_pulse;
     assign merger_idle = busy_not & dropping0_and;
     assign idle = merger_idle;
@@ -1728,7 +1730,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
             fetch_rank_header <= 2'd0;
             leaves_done <= 1'b0;
             crefs_end_sent <= 1'b0;
-            leaf_overflow_q <= 1'b0;
+            leaf_overflow <= 1'b0;
             base0_end_sent <= 1'b0;
             leaves0_wr <= 5'd0;
             leaves0_rd <= 5'd0;
@@ -1778,9 +1780,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
             leaves15_wr <= 5'd0;
             leaves15_rd <= 5'd0;
             base16_end_sent <= 1'b0;
-            leaf_overflow_header <= 1'b0;
             count_overflow <= 1'b0;
-            count_overflow_header <= 1'b0;
             done_pulse <= 1'b0;
         end else begin
             if ((used0_and_1 & phase0_eq_1) & merging_not) begin
@@ -1805,10 +1805,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
-                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:371
-                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:379
+                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:383
+                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:391
                 busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:270
-                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:305
+                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:317
                 fetch0_cfg_pending <= cfg_data_count > 3'd0; // rtl-gen/src/merge/merger/level_mode.rs:199
                 phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:259
                 cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:267
@@ -1823,14 +1823,12 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:267
                 fetch_err_header <= fetch_err; // rtl-gen/src/merge/merger/mod.rs:229
                 fetch_rank_header <= fetch_rank; // rtl-gen/src/merge/merger/mod.rs:229
-                leaf_overflow_header <= leaf_overflow_q; // rtl-gen/src/merge/merger/mod.rs:229
-                count_overflow_header <= count_overflow; // rtl-gen/src/merge/merger/mod.rs:229
             end else begin
                 if (module_cfg_pending & u_module_cfg_ready) begin
-                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:371
+                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:383
                 end
                 if (writer_cfg_pending & u_writer_cfg_ready) begin
-                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:379
+                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:391
                 end
                 if (header_fire & queued_not) begin
                     busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:270
@@ -1930,46 +1928,6 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 end else if (cfg_fire) begin
                     fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:189
                 end
-                if (leaves15_push & leaves15_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves14_push & leaves14_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves13_push & leaves13_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves12_push & leaves12_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves11_push & leaves11_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves10_push & leaves10_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves9_push & leaves9_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves8_push & leaves8_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves7_push & leaves7_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves6_push & leaves6_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves5_push & leaves5_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves4_push & leaves4_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves3_push & leaves3_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves2_push & leaves2_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves1_push & leaves1_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (leaves0_push & leaves0_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
-                end else if (cfg_fire) begin
-                    leaf_overflow_q <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:358
-                end
-                if (((u_module_out_valid & merging_and) & (u_module_kind == 2'd0)) & u_module_err_1) begin
-                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:415
-                end else if (cfg_fire) begin
-                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:415
-                end
             end
             if (leaves_all_valid & leaves_all_end) begin
                 leaves_done <= 1'b1;         // rtl-gen/src/merge/merger/leaf_merge.rs:86
@@ -1981,10 +1939,52 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
             end else if (header_fire) begin
                 crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:350
             end
+            if (!header_hold) begin
+                if (leaves15_push & leaves15_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves14_push & leaves14_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves13_push & leaves13_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves12_push & leaves12_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves11_push & leaves11_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves10_push & leaves10_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves9_push & leaves9_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves8_push & leaves8_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves7_push & leaves7_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves6_push & leaves6_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves5_push & leaves5_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves4_push & leaves4_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves3_push & leaves3_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves2_push & leaves2_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves1_push & leaves1_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (leaves0_push & leaves0_full) begin
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                end else if (header_fire) begin
+                    leaf_overflow <= 1'b0;   // rtl-gen/src/merge/merger/level_mode.rs:361
+                end
+                if (((u_module_out_valid & merging_and) & (u_module_kind == 2'd0)) & u_module_err_1) begin
+                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:417
+                end else if (header_fire) begin
+                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:417
+                end
+            end
             if (base0_end_sent_and_1 & (base0_at_m ? out_is_end : (base0_above_m ? leaves0_end : 1'b1))) begin
-                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (header_fire) begin
                 leaves0_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
@@ -2118,84 +2118,84 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 end
             end
             if (base1_end_sent_and_1 & (base1_at_m ? out_is_end : (base1_above_m ? leaves1_end : 1'b1))) begin
-                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base2_end_sent_and_1 & (base2_at_m ? out_is_end : (base2_above_m ? leaves2_end : 1'b1))) begin
-                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base3_end_sent_and_1 & (base3_at_m ? out_is_end : (base3_above_m ? leaves3_end : 1'b1))) begin
-                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base4_end_sent_and_1 & (base4_at_m ? out_is_end : (base4_above_m ? leaves4_end : 1'b1))) begin
-                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base5_end_sent_and_1 & (base5_at_m ? out_is_end : (base5_above_m ? leaves5_end : 1'b1))) begin
-                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base6_end_sent_and_1 & (base6_at_m ? out_is_end : (base6_above_m ? leaves6_end : 1'b1))) begin
-                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base7_end_sent_and_1 & (base7_at_m ? out_is_end : (base7_above_m ? leaves7_end : 1'b1))) begin
-                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base8_end_sent_and_1 & (base8_at_m ? out_is_end : (base8_above_m ? leaves8_end : 1'b1))) begin
-                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base9_end_sent_and_1 & (base9_at_m ? out_is_end : (base9_above_m ? leaves9_end : 1'b1))) begin
-                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:397
+                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base10_end_sent_and_1 & (base10_at_m ? out_is_end : (base10_above_m ? leaves10_end : 1'b1))) begin
-                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base11_end_sent_and_1 & (base11_at_m ? out_is_end : (base11_above_m ? leaves11_end : 1'b1))) begin
-                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base12_end_sent_and_1 & (base12_at_m ? out_is_end : (base12_above_m ? leaves12_end : 1'b1))) begin
-                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base13_end_sent_and_1 & (base13_at_m ? out_is_end : (base13_above_m ? leaves13_end : 1'b1))) begin
-                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base14_end_sent_and_1 & (base14_at_m ? out_is_end : (base14_above_m ? leaves14_end : 1'b1))) begin
-                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if (base15_end_sent_and_1 & (base15_at_m ? out_is_end : (base15_above_m ? leaves15_end : 1'b1))) begin
-                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             if ((base16_end_sent_and & u_builder_base16_ready) & (base16_at_m ? out_is_end : 1'b1)) begin
-                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:397
+                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             done_pulse <= header_fire;
         end

@@ -11,114 +11,114 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     input  wire report_ready,               // rtl-gen/src/merge/merger/per_node_mode.rs:145
     output wire report_valid,               // rtl-gen/src/merge/merger/per_node_mode.rs:146
     output wire [65:0] report_data,         // rtl-gen/src/merge/merger/per_node_mode.rs:147
-    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:423
-    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:423
-    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:420
-    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:420
-    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:420
+    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:435
+    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:435
+    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:432
+    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:432
+    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:432
     output wire w_filling,                  // rtl-gen/src/merge/merger/tail.rs:111
     output wire w_drain_records,            // rtl-gen/src/merge/merger/tail.rs:111
     output wire w_drain_refs,               // rtl-gen/src/merge/merger/tail.rs:111
@@ -335,13 +335,13 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:264
     reg busy;                                // rtl-gen/src/merge/merger/mod.rs:294
     wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:296
-    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:300
-    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:300
-    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:300
-    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:300
-    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:300
-    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:300
-    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:304
+    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:309
+    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:309
+    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:309
+    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:309
+    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:309
+    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:309
+    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:316
     wire [2:0] cfg_data_count;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [2:0] cfg_q_count;                  // rtl-gen/src/merge/merger/mod.rs:141
     wire [4:0] lo;                           // rtl-gen/src/merge/merger/mod.rs:141
@@ -408,10 +408,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
     wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:265
     wire range_good_not;                     // rtl-gen/src/merge/merger/per_node_mode.rs:267
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:417
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:429
     reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:212
     reg cmd1_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:221
     wire cmd1_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:232
@@ -425,10 +425,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire u_fetch1_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
     wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
     wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:265
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:417
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:429
     reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:212
     reg cmd2_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:221
     wire cmd2_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:232
@@ -442,10 +442,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire u_fetch2_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
     wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
     wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:265
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:417
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:429
     reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:212
     reg cmd3_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:221
     wire cmd3_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:232
@@ -458,10 +458,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire dropping3_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:254
     wire u_fetch3_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
     wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:417
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:429
     reg leaves_done;                         // rtl-gen/src/merge/merger/leaf_merge.rs:45
     wire leaves_active;                      // rtl-gen/src/merge/merger/leaf_merge.rs:46
     wire u_fetch0_end;                       // rtl-gen/src/merge/merger/mod.rs:141
@@ -719,9 +719,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire range_good_and_16;                  // rtl-gen/src/merge/merger/per_node_mode.rs:394
     wire base_open_and_32;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
     wire base_open_and_33;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:417
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:417
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:417
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:429
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:429
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:429
     wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:120
     wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:122
     wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:127
@@ -1626,10 +1626,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
-                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:371
-                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:379
+                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:383
+                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:391
                 busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:295
-                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:305
+                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:317
                 report_drained <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:172
                 fetch0_cfg_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:217
                 cmd0_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:233
@@ -1645,10 +1645,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 end_owed3 <= (~cfg_data_count_gt_3) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:257
             end else begin
                 if (module_cfg_pending & u_module_cfg_ready) begin
-                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:371
+                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:383
                 end
                 if (writer_cfg_pending & u_writer_cfg_ready) begin
-                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:379
+                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:391
                 end
                 if (header_fire) begin
                     busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:295

@@ -8,126 +8,126 @@ module hierarchy_unit_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4_t16_b64 (
     input  wire cmd_valid,                  // rtl-gen/src/merge/hierarchy_unit.rs:111
     input  wire [351:0] cmd_data,           // rtl-gen/src/merge/hierarchy_unit.rs:111
     output wire cmd_ready,                  // rtl-gen/src/merge/hierarchy_unit.rs:111
-    output wire det_out_valid,              // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [320:0] det_out_data,       // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire det_out_ready,              // rtl-gen/src/merge/merger/mod.rs:420
-    output wire report_valid,               // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [65:0] report_data,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire report_ready,               // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
-    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:420
-    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:423
-    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:423
-    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:423
-    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:420
-    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:420
-    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:420
+    output wire det_out_valid,              // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [320:0] det_out_data,       // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire det_out_ready,              // rtl-gen/src/merge/merger/mod.rs:432
+    output wire report_valid,               // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [65:0] report_data,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire report_ready,               // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
+    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:432
+    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:435
+    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:435
+    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:435
+    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:432
+    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:432
+    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:432
     output wire w_filling,                  // rtl-gen/src/merge/hierarchy_unit.rs:219
     output wire w_drain_records,            // rtl-gen/src/merge/hierarchy_unit.rs:219
     output wire w_drain_refs,               // rtl-gen/src/merge/hierarchy_unit.rs:219
-    output wire header_valid,               // rtl-gen/src/merge/merger/mod.rs:420
-    output wire [94:0] header_data,         // rtl-gen/src/merge/merger/mod.rs:420
-    input  wire header_ready,               // rtl-gen/src/merge/merger/mod.rs:420
+    output wire header_valid,               // rtl-gen/src/merge/merger/mod.rs:432
+    output wire [94:0] header_data,         // rtl-gen/src/merge/merger/mod.rs:432
+    input  wire header_ready,               // rtl-gen/src/merge/merger/mod.rs:432
     output wire done,                       // rtl-gen/src/merge/hierarchy_unit.rs:219
     output wire module_done,                // rtl-gen/src/merge/hierarchy_unit.rs:219
     output wire idle,                       // rtl-gen/src/merge/hierarchy_unit.rs:146
@@ -212,7 +212,7 @@ module hierarchy_unit_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4_t16_b64 (
     wire u_merger_module_done;               // rtl-gen/src/merge/hierarchy_unit.rs:110
     wire cmd_data_kind;                      // rtl-gen/src/merge/hierarchy_unit.rs:112
     wire cmd_is_merge;                       // rtl-gen/src/merge/hierarchy_unit.rs:113
-    wire det_out_ready_w;                    // rtl-gen/src/merge/merger/mod.rs:417
+    wire det_out_ready_w;                    // rtl-gen/src/merge/merger/mod.rs:429
     wire merge_valid;                        // rtl-gen/src/merge/hierarchy_unit.rs:134
     wire [2:0] count;                        // rtl-gen/src/merge/hierarchy_unit.rs:165
     wire used0;                              // rtl-gen/src/merge/hierarchy_unit.rs:171
@@ -254,27 +254,27 @@ module hierarchy_unit_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4_t16_b64 (
     wire [4:0] range_hi;                     // rtl-gen/src/merge/hierarchy_unit.rs:194
     wire [3:0] cmd_data_out_id;              // rtl-gen/src/merge/hierarchy_unit.rs:195
     wire [568:0] merger_cfg;                 // rtl-gen/src/merge/hierarchy_unit.rs:197
-    wire report_ready_w;                     // rtl-gen/src/merge/merger/mod.rs:417
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:417
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:417
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:417
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:417
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:417
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:417
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:417
-    wire header_ready_w;                     // rtl-gen/src/merge/merger/mod.rs:417
+    wire report_ready_w;                     // rtl-gen/src/merge/merger/mod.rs:429
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:429
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:429
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:429
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
+    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:429
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:429
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:429
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:429
+    wire header_ready_w;                     // rtl-gen/src/merge/merger/mod.rs:429
 
     assign cmd_ready = cmd_is_merge ? (u_merger_cfg_ready & table_settled) : u_translate_det_in_ready;
     assign cmd_data_kind = cmd_data[351];

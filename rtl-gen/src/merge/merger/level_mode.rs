@@ -354,8 +354,11 @@ fn route_out<'m>(
     let cb = c.sizes.leaf_bits;
     let mut base_m_ready = zero;
     let mut base_m_sent = zero;
-    let mut leaf_over = m.reg("leaf_overflow", 1);
-    let mut over_next = s.flag_clear.mux(zero, leaf_over);
+    // Leaf and count overflow come from merge passes alone, and those never
+    // overlap (the newer merge's choice waits for the older's header): so
+    // these flags start afresh as the header leaves and need no copy.
+    let leaf_over = m.reg("leaf_overflow", 1);
+    let mut over_next = header_fire.mux(zero, leaf_over);
     let reused_kind = lit(base_kind::REUSED, 2);
     for d in 0..=dmax {
         let dl = lit(d as u64, lb);
@@ -398,8 +401,7 @@ fn route_out<'m>(
         base_m_ready = at_m.mux(ready & !bsent, base_m_ready);
         base_m_sent = at_m.mux(bsent, base_m_sent);
     }
-    leaf_over.next(s.flag_hold.mux(leaf_over, over_next));
-    leaf_over = s.shown_flag(m, leaf_over.name("leaf_overflow_q"), "leaf_overflow");
+    leaf_over.next(s.header_hold.mux(leaf_over, over_next));
     let mo_ready = merging
         & mo_ref.mux(
             cref_ready,
@@ -412,9 +414,8 @@ fn route_out<'m>(
     let count_over = m.reg("count_overflow", 1);
     let created = mo_kind.eq(base_kind::CREATED);
     let count_next =
-        (mo_valid & mo_ready & created & mo_err).mux(one, s.flag_clear.mux(zero, count_over));
-    count_over.next(s.flag_hold.mux(count_over, count_next));
-    let count_over = s.shown_flag(m, count_over, "count_overflow");
+        (mo_valid & mo_ready & created & mo_err).mux(one, header_fire.mux(zero, count_over));
+    count_over.next(s.header_hold.mux(count_over, count_next));
 
     (leaf_over, count_over)
 }

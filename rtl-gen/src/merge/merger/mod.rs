@@ -270,8 +270,8 @@ fn shell<'m>(
         busy.next(cfg_fire.mux(one, (header_fire & !queued).mux(zero, busy)));
         queued.next((cfg_fire & busy & !header_fire).mux(one, header_fire.mux(zero, queued)));
         // The next merge may start once this one settled: its fetchers
-        // and the module are then done with it (`quiet` below), and the
-        // `cfg` beats it sent were taken.
+        // are then done with it (`quiet` below), and the `cfg` beats it
+        // sent were taken.
         // Nor while the module offers a choice: it is this merge's, which
         // passed already when the merge settled, and the newer merge's
         // `choice_waits` must never withdraw a beat offered (so that the
@@ -295,9 +295,21 @@ fn shell<'m>(
         busy.next(cfg_fire.mux(one, header_fire.mux(zero, busy)));
         (busy, zero, !busy)
     };
-    let mut quiet = front_free & module.output("idle");
+    // Overlapping merges need the fetchers done, not the module: its own
+    // `cfg` waits in `module_cfg_pending`, and its network holds the newer
+    // merge's beats until it is idle (8.10). A fetcher's `idle` is its walk
+    // alone; its `out` and `leaves` skid buffers may still hold beats, and
+    // the next `cfg` re-routes them, so they must be empty too.
+    let mut quiet = if overlap {
+        front_free
+    } else {
+        front_free & module.output("idle")
+    };
     for (i, f) in fetchers.iter().enumerate() {
         quiet = quiet & f.output("idle") & !dropping[i];
+        if overlap {
+            quiet = quiet & !f.output("out_valid") & !f.output("leaves_valid");
+        }
     }
     let quiet = quiet.name("quiet");
     cfg.ready.drive(quiet);

@@ -108,6 +108,9 @@ struct Choice<'m> {
     known: Signal<'m>,
     /// The choice beat passes now.
     seen: Signal<'m>,
+    /// What the choice beat passing now says: not an error, and its level.
+    seen_ok: Signal<'m>,
+    seen_level: Signal<'m>,
     /// The choice is not an error.
     ok: Signal<'m>,
     /// The merging level `m`.
@@ -143,6 +146,8 @@ fn choice<'m>(m: &'m Module, p: &Params, s: &Shell<'m>) -> Choice<'m> {
     Choice {
         known,
         seen: chosen_beat,
+        seen_ok: get(report_data, &tl.err).eq(0),
+        seen_level: get(report_data, &tl.lod),
         ok,
         level,
         merging,
@@ -191,12 +196,18 @@ fn inputs<'m>(
     let mut leaves_in = Vec::new();
     let mut sent = one;
     for (i, f) in fetchers.iter().enumerate() {
+        // The fetcher's `cfg` beat goes out in the clock the merge's is
+        // taken, its data then straight from the `cfg` beat (from `cfg_q`
+        // while it waits): the count pass's root reads start a clock sooner.
         let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
-        f.connect("cfg_valid", fcfg_pend);
+        let fcfg_now = (cfg_fire & used_in[i]).name(&format!("fetch{i}_cfg_now"));
+        let fcfg_valid = fcfg_pend | fcfg_now;
+        f.connect("cfg_valid", fcfg_valid);
         let off = ml.input_offset(i);
-        f.connect("cfg_data", cfg_q.slice(off + fl.cfg.width() - 1, off));
-        let fcfg_fire = fcfg_pend & f.output("cfg_ready");
-        fcfg_pend.next(cfg_fire.mux(used_in[i], fcfg_fire.mux(zero, fcfg_pend)));
+        let slice = |d: Signal<'m>| d.slice(off + fl.cfg.width() - 1, off);
+        f.connect("cfg_data", fcfg_pend.mux(slice(cfg_q), slice(cfg.data)));
+        let fcfg_fire = fcfg_valid & f.output("cfg_ready");
+        fcfg_pend.next(fcfg_fire.mux(zero, fcfg_now.mux(one, fcfg_pend)));
 
         let ph = m.reg(&format!("phase{i}"), phase::BITS);
         let phases = m.states(phase::BITS, phase::STATES);
@@ -206,19 +217,26 @@ fn inputs<'m>(
         let cmd_lod = m.reg(&format!("cmd_lod{i}"), lb);
         let count_ph = in_ph(phase::COUNT);
         let final_ph = in_ph(phase::FINAL);
-        let lod = count_ph.mux(hi, merging.mux(level, lo));
+        // The merge-pass (or closing) command goes out in the clock the
+        // choice passes (`final_now`, from the report beat), and from FINAL
+        // while it waits: the walk to `m` starts a clock sooner.
+        let final_now = (in_ph(phase::WAIT) & ch.seen).name(&format!("final_now{i}"));
+        let final_cmd = final_ph | final_now;
+        let merging_cmd = final_now.mux(ch.seen_ok, merging);
+        let level_cmd = final_now.mux(ch.seen_level, level);
+        let lod = count_ph.mux(hi, merging_cmd.mux(level_cmd, lo));
         let cmd_data = lit(0, fl.cmd.width()).with_fields(&[
             (fl.lod, lod),
-            (fl.send_refs, final_ph & merging),
+            (fl.send_refs, final_cmd & merging_cmd),
             // The leaves above m come with level m (SPEC 8.15: no
             // deadlock, the fetcher ends `leaves` before level m).
-            (fl.send_leaves, final_ph & merging),
-            (fl.last, final_ph),
+            (fl.send_leaves, final_cmd & merging_cmd),
+            (fl.last, final_cmd),
             // The count pass sends lo..=hi from one walk; the other
             // commands one level.
             (fl.from, count_ph.mux(lo, lod)),
         ]);
-        let issuing = (count_ph | final_ph).name(&format!("issuing{i}"));
+        let issuing = (count_ph | final_cmd).name(&format!("issuing{i}"));
         f.connect("cmd_valid", used[i] & issuing);
         f.connect("cmd_data", cmd_data);
         let cmd_fire = used[i] & issuing & f.output("cmd_ready");
@@ -268,7 +286,7 @@ fn inputs<'m>(
             get(cfg.data, &ml.lo),
             (step & count_ph).mux(cmd_lod.add(1, lb), cmd_lod),
         ));
-        let drop_issued = cmd_fire & final_ph & !merging;
+        let drop_issued = cmd_fire & final_cmd & !merging_cmd;
         dropping[i].next(drop_issued.mux(one, (fo_fire & fo_end).mux(zero, dropping[i])));
 
         // The store ports (every `*_req` / `*_resp` stream), straight through.

@@ -8,9 +8,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     input  wire cfg_valid,                 // rtl-gen/src/merge/merger/mod.rs:263
     input  wire [568:0] cfg_data,          // rtl-gen/src/merge/merger/mod.rs:263
     output wire cfg_ready,                 // rtl-gen/src/merge/merger/mod.rs:263
-    input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:123
-    output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:131
-    output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:132
+    input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:126
+    output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:134
+    output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:135
     input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
     input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
     output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
@@ -105,10 +105,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     output wire idle,                      // rtl-gen/src/merge/merger/tail.rs:152
     output wire module_done                // rtl-gen/src/merge/merger/tail.rs:153
 );
-    localparam [2:0] COUNT = 3'd1;           // rtl-gen/src/merge/merger/level_mode.rs:203
-    localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:249
-    localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:203
-    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:203
+    localparam [2:0] COUNT = 3'd1;           // rtl-gen/src/merge/merger/level_mode.rs:214
+    localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:214
+    localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:214
+    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:214
     reg [177:0] leaves0 [0:15];              // rtl-gen/src/drop_fifo.rs:56
     reg [177:0] leaves1 [0:15];              // rtl-gen/src/drop_fifo.rs:56
     reg [177:0] leaves2 [0:15];              // rtl-gen/src/drop_fifo.rs:56
@@ -324,109 +324,133 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire used1;                              // rtl-gen/src/merge/merger/level_mode.rs:49
     wire used2;                              // rtl-gen/src/merge/merger/level_mode.rs:49
     wire used3;                              // rtl-gen/src/merge/merger/level_mode.rs:49
-    wire u_module_chosen_eq;                 // rtl-gen/src/merge/merger/level_mode.rs:128
-    wire choice_waits;                       // rtl-gen/src/merge/merger/level_mode.rs:128
-    wire choice_waits_not;                   // rtl-gen/src/merge/merger/level_mode.rs:129
-    wire u_module_and;                       // rtl-gen/src/merge/merger/level_mode.rs:129
-    wire choice_seen;                        // rtl-gen/src/merge/merger/level_mode.rs:134
-    reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:135
-    reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:136
-    reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:137
+    wire u_module_chosen_eq;                 // rtl-gen/src/merge/merger/level_mode.rs:131
+    wire choice_waits;                       // rtl-gen/src/merge/merger/level_mode.rs:131
+    wire choice_waits_not;                   // rtl-gen/src/merge/merger/level_mode.rs:132
+    wire u_module_and;                       // rtl-gen/src/merge/merger/level_mode.rs:132
+    wire choice_seen;                        // rtl-gen/src/merge/merger/level_mode.rs:137
+    reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:138
+    reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:139
+    reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:140
     wire [1:0] u_module_err;                 // rtl-gen/src/merge/merger/mod.rs:141
+    wire u_module_err_eq;                    // rtl-gen/src/merge/merger/level_mode.rs:142
     wire [4:0] u_module_lod;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:141
-    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:186
-    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:187
-    wire [3:0] cfg_fire_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:188
-    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:190
-    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
-    reg [2:0] phase0;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:206
-    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire [4:0] merging_mux;                  // rtl-gen/src/merge/merger/level_mode.rs:209
-    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:209
-    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:221
-    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:144
+    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:191
+    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:192
+    wire [3:0] cfg_fire_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:193
+    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:195
+    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire fetch0_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire fetch0_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:204
+    reg [2:0] phase0;                        // rtl-gen/src/merge/merger/level_mode.rs:212
+    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:217
+    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire phase0_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire final_now0;                         // rtl-gen/src/merge/merger/level_mode.rs:223
+    wire phase0_or;                          // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire final_now0_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:227
+    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:230
+    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:239
+    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:240
+    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:242
     wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:234
-    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:234
-    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:238
-    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:241
-    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:242
-    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:245
-    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:258
-    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:260
+    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:252
+    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:252
+    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:256
+    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:257
+    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:259
+    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:260
+    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:263
+    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:264
+    wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:276
+    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:278
     wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
-    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
-    reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:206
-    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:209
-    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:221
-    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:224
+    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire fetch1_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire fetch1_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:204
+    reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:212
+    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:217
+    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire phase1_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire final_now1;                         // rtl-gen/src/merge/merger/level_mode.rs:223
+    wire phase1_or;                          // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire final_now1_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:227
+    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:230
+    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:239
+    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:240
+    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:242
     wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:234
-    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:234
-    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:238
-    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:241
-    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:242
-    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:246
+    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:252
+    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:252
+    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:256
+    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:257
+    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:259
+    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:260
+    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:264
     wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
-    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
-    reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:206
-    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:209
-    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:221
-    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:224
+    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire fetch2_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire fetch2_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:204
+    reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:212
+    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:217
+    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire phase2_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire final_now2;                         // rtl-gen/src/merge/merger/level_mode.rs:223
+    wire phase2_or;                          // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire final_now2_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:227
+    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:230
+    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:239
+    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:240
+    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:242
     wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:234
-    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:234
-    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:238
-    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:241
-    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:242
-    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:246
+    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:252
+    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:252
+    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:256
+    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:257
+    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:259
+    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:260
+    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:264
     wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
-    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
-    reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:206
-    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:209
-    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:221
-    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:224
+    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire fetch3_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire fetch3_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:204
+    reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:212
+    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:217
+    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire phase3_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire final_now3;                         // rtl-gen/src/merge/merger/level_mode.rs:223
+    wire phase3_or;                          // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire final_now3_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:227
+    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:230
+    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:239
+    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:240
+    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:242
     wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:234
-    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:234
-    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:238
-    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:241
-    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:246
+    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:252
+    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:252
+    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:256
+    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:257
+    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:259
+    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:264
     wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
@@ -465,355 +489,355 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaf_take;                          // rtl-gen/src/merge/merger/leaf_merge.rs:79
     wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:325
-    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:326
+    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:344
     wire u_module_err_1;                     // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:141
-    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:329
-    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:336
-    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:338
-    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:338
-    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:339
-    reg leaf_overflow;                       // rtl-gen/src/merge/merger/level_mode.rs:360
-    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:347
+    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:354
+    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:356
+    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:356
+    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:357
+    reg leaf_overflow;                       // rtl-gen/src/merge/merger/level_mode.rs:378
+    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves0_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves0_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves0_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves0_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves0_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves0_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves0_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves0_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
-    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
+    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves1_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves1_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves1_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves1_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves1_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves1_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves1_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves1_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
-    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
+    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves2_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves2_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves2_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves2_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves2_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves2_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves2_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves2_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:419
+    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves3_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves3_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves3_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves3_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves3_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves3_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves3_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves3_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:402
-    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:420
+    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves4_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves4_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves4_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves4_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves4_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves4_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves4_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves4_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
-    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
+    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves5_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves5_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves5_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves5_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves5_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves5_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves5_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves5_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:419
+    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves6_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves6_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves6_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves6_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves6_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves6_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves6_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves6_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
-    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
+    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves7_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves7_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves7_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves7_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves7_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves7_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves7_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves7_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:402
-    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:420
+    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves8_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves8_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves8_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves8_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves8_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves8_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves8_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves8_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:419
+    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves9_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves9_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves9_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves9_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves9_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves9_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves9_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves9_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:388
-    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
+    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves10_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves10_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves10_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves10_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves10_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves10_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves10_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves10_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
-    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
+    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves11_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves11_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves11_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves11_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves11_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves11_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves11_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves11_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:402
-    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:419
+    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:420
+    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves12_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves12_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves12_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves12_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves12_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves12_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves12_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves12_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
-    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
+    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves13_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves13_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves13_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves13_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves13_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves13_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves13_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves13_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
-    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
+    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves14_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves14_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves14_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves14_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves14_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves14_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves14_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves14_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:419
+    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
     reg [4:0] leaves15_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves15_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves15_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves15_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
     wire leaves15_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves15_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:376
+    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
     wire [149:0] leaves15_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves15_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:388
-    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:402
-    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:392
-    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:392
-    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:405
-    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:414
+    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
+    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:420
+    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:410
+    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:410
+    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:419
+    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:424
+    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:423
+    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:432
     wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:429
     wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:429
     wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:429
@@ -861,22 +885,28 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign report_data = u_module_report_data;
     assign choice_seen = (u_module_and & report_ready) & u_module_chosen_eq;
     assign u_module_err = u_module_report_data[57:56];
+    assign u_module_err_eq = u_module_err == 2'd0;
     assign u_module_lod = u_module_report_data[4:0];
     assign merging = choice_known & choice_ok;
     assign cfg_fire_mux = cfg_fire ? 4'd0 : fetch_err;
     assign const_cat = {2'd3, 178'h000000000000000000000000000000000000000000000};
+    assign fetch0_cfg_now = cfg_fire & (cfg_data_count > 3'd0);
+    assign fetch0_cfg_pending_or = fetch0_cfg_pending | fetch0_cfg_now;
     assign phase0_eq = phase0 == COUNT;
     assign phase0_eq_1 = phase0 == FINAL;
-    assign merging_mux = merging ? merge_lod : lo;
-    assign phase0_mux = phase0_eq ? hi : merging_mux;
-    assign phase0_and = phase0_eq_1 & merging;
-    assign issuing0 = phase0_eq | phase0_eq_1;
+    assign phase0_eq_2 = phase0 == WAIT;
+    assign final_now0 = phase0_eq_2 & choice_seen;
+    assign phase0_or = phase0_eq_1 | final_now0;
+    assign final_now0_mux = final_now0 ? u_module_err_eq : merging;
+    assign phase0_mux = phase0_eq ? hi : (final_now0_mux ? (final_now0 ? u_module_lod : merge_lod) : lo);
+    assign phase0_and = phase0_or & final_now0_mux;
+    assign issuing0 = phase0_eq | phase0_or;
     assign used0_and = used0 & issuing0;
     assign used0_and_1 = used0_and & u_fetch0_cmd_ready;
     assign u_fetch0_err = u_fetch0_out_data[183:180];
     assign u_fetch0_kind = u_fetch0_out_data[179:178];
     assign used0_not = ~used0;
-    assign virtual_end0 = used0_not & (phase0_eq | phase0_and);
+    assign virtual_end0 = used0_not & (phase0_eq | (phase0_eq_1 & merging));
     assign dropping0_or = dropping0 | (used0 & u_module_in0_ready);
     assign u_fetch0_and = u_fetch0_out_valid & dropping0_or;
     assign u_fetch0_and_1 = (u_fetch0_and & (u_fetch0_err != 4'd0)) & (cfg_fire_mux == 4'd0);
@@ -897,17 +927,23 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign f0_cref_req_ready_w = f0_cref_req_ready;
     assign f0_cref_req_valid = u_fetch0_cref_req_valid;
     assign f0_cref_req_data = u_fetch0_cref_req_data;
+    assign fetch1_cfg_now = cfg_fire & (cfg_data_count > 3'd1);
+    assign fetch1_cfg_pending_or = fetch1_cfg_pending | fetch1_cfg_now;
     assign phase1_eq = phase1 == COUNT;
     assign phase1_eq_1 = phase1 == FINAL;
-    assign phase1_mux = phase1_eq ? hi : merging_mux;
-    assign phase1_and = phase1_eq_1 & merging;
-    assign issuing1 = phase1_eq | phase1_eq_1;
+    assign phase1_eq_2 = phase1 == WAIT;
+    assign final_now1 = phase1_eq_2 & choice_seen;
+    assign phase1_or = phase1_eq_1 | final_now1;
+    assign final_now1_mux = final_now1 ? u_module_err_eq : merging;
+    assign phase1_mux = phase1_eq ? hi : (final_now1_mux ? (final_now1 ? u_module_lod : merge_lod) : lo);
+    assign phase1_and = phase1_or & final_now1_mux;
+    assign issuing1 = phase1_eq | phase1_or;
     assign used1_and = used1 & issuing1;
     assign used1_and_1 = used1_and & u_fetch1_cmd_ready;
     assign u_fetch1_err = u_fetch1_out_data[183:180];
     assign u_fetch1_kind = u_fetch1_out_data[179:178];
     assign used1_not = ~used1;
-    assign virtual_end1 = used1_not & (phase1_eq | phase1_and);
+    assign virtual_end1 = used1_not & (phase1_eq | (phase1_eq_1 & merging));
     assign dropping1_or = dropping1 | (used1 & u_module_in1_ready);
     assign u_fetch1_and = u_fetch1_out_valid & dropping1_or;
     assign u_fetch1_and_1 = (u_fetch1_and & (u_fetch1_err != 4'd0)) & (u_fetch0_mux == 4'd0);
@@ -925,17 +961,23 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign f1_cref_req_ready_w = f1_cref_req_ready;
     assign f1_cref_req_valid = u_fetch1_cref_req_valid;
     assign f1_cref_req_data = u_fetch1_cref_req_data;
+    assign fetch2_cfg_now = cfg_fire & (cfg_data_count > 3'd2);
+    assign fetch2_cfg_pending_or = fetch2_cfg_pending | fetch2_cfg_now;
     assign phase2_eq = phase2 == COUNT;
     assign phase2_eq_1 = phase2 == FINAL;
-    assign phase2_mux = phase2_eq ? hi : merging_mux;
-    assign phase2_and = phase2_eq_1 & merging;
-    assign issuing2 = phase2_eq | phase2_eq_1;
+    assign phase2_eq_2 = phase2 == WAIT;
+    assign final_now2 = phase2_eq_2 & choice_seen;
+    assign phase2_or = phase2_eq_1 | final_now2;
+    assign final_now2_mux = final_now2 ? u_module_err_eq : merging;
+    assign phase2_mux = phase2_eq ? hi : (final_now2_mux ? (final_now2 ? u_module_lod : merge_lod) : lo);
+    assign phase2_and = phase2_or & final_now2_mux;
+    assign issuing2 = phase2_eq | phase2_or;
     assign used2_and = used2 & issuing2;
     assign used2_and_1 = used2_and & u_fetch2_cmd_ready;
     assign u_fetch2_err = u_fetch2_out_data[183:180];
     assign u_fetch2_kind = u_fetch2_out_data[179:178];
     assign used2_not = ~used2;
-    assign virtual_end2 = used2_not & (phase2_eq | phase2_and);
+    assign virtual_end2 = used2_not & (phase2_eq | (phase2_eq_1 & merging));
     assign dropping2_or = dropping2 | (used2 & u_module_in2_ready);
     assign u_fetch2_and = u_fetch2_out_valid & dropping2_or;
     assign u_fetch2_and_1 = (u_fetch2_and & (u_fetch2_err != 4'd0)) & (u_fetch1_mux == 4'd0);
@@ -953,17 +995,23 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign f2_cref_req_ready_w = f2_cref_req_ready;
     assign f2_cref_req_valid = u_fetch2_cref_req_valid;
     assign f2_cref_req_data = u_fetch2_cref_req_data;
+    assign fetch3_cfg_now = cfg_fire & (cfg_data_count > 3'd3);
+    assign fetch3_cfg_pending_or = fetch3_cfg_pending | fetch3_cfg_now;
     assign phase3_eq = phase3 == COUNT;
     assign phase3_eq_1 = phase3 == FINAL;
-    assign phase3_mux = phase3_eq ? hi : merging_mux;
-    assign phase3_and = phase3_eq_1 & merging;
-    assign issuing3 = phase3_eq | phase3_eq_1;
+    assign phase3_eq_2 = phase3 == WAIT;
+    assign final_now3 = phase3_eq_2 & choice_seen;
+    assign phase3_or = phase3_eq_1 | final_now3;
+    assign final_now3_mux = final_now3 ? u_module_err_eq : merging;
+    assign phase3_mux = phase3_eq ? hi : (final_now3_mux ? (final_now3 ? u_module_lod : merge_lod) : lo);
+    assign phase3_and = phase3_or & final_now3_mux;
+    assign issuing3 = phase3_eq | phase3_or;
     assign used3_and = used3 & issuing3;
     assign used3_and_1 = used3_and & u_fetch3_cmd_ready;
     assign u_fetch3_err = u_fetch3_out_data[183:180];
     assign u_fetch3_kind = u_fetch3_out_data[179:178];
     assign used3_not = ~used3;
-    assign virtual_end3 = used3_not & (phase3_eq | phase3_and);
+    assign virtual_end3 = used3_not & (phase3_eq | (phase3_eq_1 & merging));
     assign dropping3_or = dropping3 | (used3 & u_module_in3_ready);
     assign u_fetch3_and = u_fetch3_out_valid & dropping3_or;
     assign u_fetch3_and_1 = (u_fetch3_and & (u_fetch3_err != 4'd0)) & (u_fetch2_mux == 4'd0);
@@ -1335,11 +1383,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     fetcher_d16_q8_i24_h4_r16_f256 u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:250
         .clk(clk),
         .rst(rst),
-        .cfg_valid(fetch0_cfg_pending),
-        .cfg_data(cfg_q[137:0]),
+        .cfg_valid(fetch0_cfg_pending_or),
+        .cfg_data(fetch0_cfg_pending ? cfg_q[137:0] : cfg_data[137:0]),
         .cfg_ready(u_fetch0_cfg_ready),
         .cmd_valid(used0_and),
-        .cmd_data({phase0_eq ? lo : phase0_mux, phase0_eq_1, phase0_and, phase0_and, phase0_mux}),
+        .cmd_data({phase0_eq ? lo : phase0_mux, phase0_or, phase0_and, phase0_and, phase0_mux}),
         .cmd_ready(u_fetch0_cmd_ready),
         .node_resp_valid(f0_node_resp_valid),
         .node_resp_data(f0_node_resp_data),
@@ -1371,11 +1419,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     fetcher_d16_q8_i24_h4_r16_f256 u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:250
         .clk(clk),
         .rst(rst),
-        .cfg_valid(fetch1_cfg_pending),
-        .cfg_data(cfg_q[275:138]),
+        .cfg_valid(fetch1_cfg_pending_or),
+        .cfg_data(fetch1_cfg_pending ? cfg_q[275:138] : cfg_data[275:138]),
         .cfg_ready(u_fetch1_cfg_ready),
         .cmd_valid(used1_and),
-        .cmd_data({phase1_eq ? lo : phase1_mux, phase1_eq_1, phase1_and, phase1_and, phase1_mux}),
+        .cmd_data({phase1_eq ? lo : phase1_mux, phase1_or, phase1_and, phase1_and, phase1_mux}),
         .cmd_ready(u_fetch1_cmd_ready),
         .node_resp_valid(f1_node_resp_valid),
         .node_resp_data(f1_node_resp_data),
@@ -1407,11 +1455,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     fetcher_d16_q8_i24_h4_r16_f256 u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:250
         .clk(clk),
         .rst(rst),
-        .cfg_valid(fetch2_cfg_pending),
-        .cfg_data(cfg_q[413:276]),
+        .cfg_valid(fetch2_cfg_pending_or),
+        .cfg_data(fetch2_cfg_pending ? cfg_q[413:276] : cfg_data[413:276]),
         .cfg_ready(u_fetch2_cfg_ready),
         .cmd_valid(used2_and),
-        .cmd_data({phase2_eq ? lo : phase2_mux, phase2_eq_1, phase2_and, phase2_and, phase2_mux}),
+        .cmd_data({phase2_eq ? lo : phase2_mux, phase2_or, phase2_and, phase2_and, phase2_mux}),
         .cmd_ready(u_fetch2_cmd_ready),
         .node_resp_valid(f2_node_resp_valid),
         .node_resp_data(f2_node_resp_data),
@@ -1443,11 +1491,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     fetcher_d16_q8_i24_h4_r16_f256 u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:250
         .clk(clk),
         .rst(rst),
-        .cfg_valid(fetch3_cfg_pending),
-        .cfg_data(cfg_q[551:414]),
+        .cfg_valid(fetch3_cfg_pending_or),
+        .cfg_data(fetch3_cfg_pending ? cfg_q[551:414] : cfg_data[551:414]),
         .cfg_ready(u_fetch3_cfg_ready),
         .cmd_valid(used3_and),
-        .cmd_data({phase3_eq ? lo : phase3_mux, phase3_eq_1, phase3_and, phase3_and, phase3_mux}),
+        .cmd_data({phase3_eq ? lo : phase3_mux, phase3_or, phase3_and, phase3_and, phase3_mux}),
         .cmd_ready(u_fetch3_cmd_ready),
         .node_resp_valid(f3_node_resp_valid),
         .node_resp_data(f3_node_resp_data),
@@ -1783,25 +1831,25 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
             count_overflow <= 1'b0;
             done_pulse <= 1'b0;
         end else begin
-            if ((used0_and_1 & phase0_eq_1) & merging_not) begin
-                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:272
+            if ((used0_and_1 & phase0_or) & (~final_now0_mux)) begin
+                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:290
             end else if (u_fetch0_and & (u_fetch0_kind == 2'd3)) begin
-                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:272
+                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:290
             end
-            if ((used1_and_1 & phase1_eq_1) & merging_not) begin
-                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:272
+            if ((used1_and_1 & phase1_or) & (~final_now1_mux)) begin
+                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:290
             end else if (u_fetch1_and & (u_fetch1_kind == 2'd3)) begin
-                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:272
+                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:290
             end
-            if ((used2_and_1 & phase2_eq_1) & merging_not) begin
-                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:272
+            if ((used2_and_1 & phase2_or) & (~final_now2_mux)) begin
+                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:290
             end else if (u_fetch2_and & (u_fetch2_kind == 2'd3)) begin
-                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:272
+                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:290
             end
-            if ((used3_and_1 & phase3_eq_1) & merging_not) begin
-                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:272
+            if ((used3_and_1 & phase3_or) & (~final_now3_mux)) begin
+                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:290
             end else if (u_fetch3_and & (u_fetch3_kind == 2'd3)) begin
-                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:272
+                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:290
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
@@ -1809,18 +1857,14 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:391
                 busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:270
                 cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:317
-                fetch0_cfg_pending <= cfg_data_count > 3'd0; // rtl-gen/src/merge/merger/level_mode.rs:199
-                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:259
-                cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:267
-                fetch1_cfg_pending <= cfg_data_count > 3'd1; // rtl-gen/src/merge/merger/level_mode.rs:199
-                phase1 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:259
-                cmd_lod1 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:267
-                fetch2_cfg_pending <= cfg_data_count > 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:199
-                phase2 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:259
-                cmd_lod2 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:267
-                fetch3_cfg_pending <= cfg_data_count > 3'd3; // rtl-gen/src/merge/merger/level_mode.rs:199
-                phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:259
-                cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:267
+                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:277
+                cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:285
+                phase1 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:277
+                cmd_lod1 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:285
+                phase2 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:277
+                cmd_lod2 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:285
+                phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:277
+                cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:285
                 fetch_err_header <= fetch_err; // rtl-gen/src/merge/merger/mod.rs:229
                 fetch_rank_header <= fetch_rank; // rtl-gen/src/merge/merger/mod.rs:229
             end else begin
@@ -1833,73 +1877,61 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 if (header_fire & queued_not) begin
                     busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:270
                 end
-                if (fetch0_cfg_pending & u_fetch0_cfg_ready) begin
-                    fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:199
-                end
                 if (step0) begin
                     if (phase0_eq) begin
                         if (used0 | (cmd_lod0 == hi)) begin
-                            phase0 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:249
+                            phase0 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:267
                         end
                     end else begin
-                        phase0 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:248
+                        phase0 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:266
                     end
-                end else if ((phase0 == WAIT) & choice_known_or) begin
-                    phase0 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:263
+                end else if (phase0_eq_2 & choice_known_or) begin
+                    phase0 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:281
                 end
                 if (step0 & phase0_eq) begin
-                    cmd_lod0 <= cmd_lod0 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:269
-                end
-                if (fetch1_cfg_pending & u_fetch1_cfg_ready) begin
-                    fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:199
+                    cmd_lod0 <= cmd_lod0 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:287
                 end
                 if (step1) begin
                     if (phase1_eq) begin
                         if (used1 | (cmd_lod1 == hi)) begin
-                            phase1 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:249
+                            phase1 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:267
                         end
                     end else begin
-                        phase1 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:248
+                        phase1 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:266
                     end
-                end else if ((phase1 == WAIT) & choice_known_or) begin
-                    phase1 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:263
+                end else if (phase1_eq_2 & choice_known_or) begin
+                    phase1 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:281
                 end
                 if (step1 & phase1_eq) begin
-                    cmd_lod1 <= cmd_lod1 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:269
-                end
-                if (fetch2_cfg_pending & u_fetch2_cfg_ready) begin
-                    fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:199
+                    cmd_lod1 <= cmd_lod1 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:287
                 end
                 if (step2) begin
                     if (phase2_eq) begin
                         if (used2 | (cmd_lod2 == hi)) begin
-                            phase2 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:249
+                            phase2 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:267
                         end
                     end else begin
-                        phase2 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:248
+                        phase2 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:266
                     end
-                end else if ((phase2 == WAIT) & choice_known_or) begin
-                    phase2 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:263
+                end else if (phase2_eq_2 & choice_known_or) begin
+                    phase2 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:281
                 end
                 if (step2 & phase2_eq) begin
-                    cmd_lod2 <= cmd_lod2 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:269
-                end
-                if (fetch3_cfg_pending & u_fetch3_cfg_ready) begin
-                    fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:199
+                    cmd_lod2 <= cmd_lod2 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:287
                 end
                 if (step3) begin
                     if (phase3_eq) begin
                         if (used3 | (cmd_lod3 == hi)) begin
-                            phase3 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:249
+                            phase3 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:267
                         end
                     end else begin
-                        phase3 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:248
+                        phase3 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:266
                     end
-                end else if ((phase3 == WAIT) & choice_known_or) begin
-                    phase3 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:263
+                end else if (phase3_eq_2 & choice_known_or) begin
+                    phase3 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:281
                 end
                 if (step3 & phase3_eq) begin
-                    cmd_lod3 <= cmd_lod3 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:269
+                    cmd_lod3 <= cmd_lod3 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:287
                 end
             end
             if ((cfg_fire & busy) & (~header_fire)) begin
@@ -1908,26 +1940,46 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 queued <= 1'b0;              // rtl-gen/src/merge/merger/mod.rs:271
             end
             if (choice_seen) begin
-                choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:138
-                choice_ok <= u_module_err == 2'd0; // rtl-gen/src/merge/merger/level_mode.rs:139
-                merge_lod <= u_module_lod;   // rtl-gen/src/merge/merger/level_mode.rs:140
+                choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:141
+                choice_ok <= u_module_err_eq; // rtl-gen/src/merge/merger/level_mode.rs:142
+                merge_lod <= u_module_lod;   // rtl-gen/src/merge/merger/level_mode.rs:143
             end else if (header_fire) begin
-                choice_known <= 1'b0;        // rtl-gen/src/merge/merger/level_mode.rs:138
-                choice_ok <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:139
+                choice_known <= 1'b0;        // rtl-gen/src/merge/merger/level_mode.rs:141
+                choice_ok <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:142
             end
             if (!flags_hold) begin
-                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/level_mode.rs:282
+                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/level_mode.rs:300
                 if (u_fetch3_and_1) begin
-                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/level_mode.rs:243
+                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/level_mode.rs:261
                 end else if (u_fetch2_and_1) begin
-                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/level_mode.rs:243
+                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/level_mode.rs:261
                 end else if (u_fetch1_and_1) begin
-                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/level_mode.rs:243
+                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/level_mode.rs:261
                 end else if (u_fetch0_and_1) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:243
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:261
                 end else if (cfg_fire) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:189
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:194
                 end
+            end
+            if (fetch0_cfg_pending_or & u_fetch0_cfg_ready) begin
+                fetch0_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:210
+            end else if (fetch0_cfg_now) begin
+                fetch0_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:210
+            end
+            if (fetch1_cfg_pending_or & u_fetch1_cfg_ready) begin
+                fetch1_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:210
+            end else if (fetch1_cfg_now) begin
+                fetch1_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:210
+            end
+            if (fetch2_cfg_pending_or & u_fetch2_cfg_ready) begin
+                fetch2_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:210
+            end else if (fetch2_cfg_now) begin
+                fetch2_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:210
+            end
+            if (fetch3_cfg_pending_or & u_fetch3_cfg_ready) begin
+                fetch3_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:210
+            end else if (fetch3_cfg_now) begin
+                fetch3_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:210
             end
             if (leaves_all_valid & leaves_all_end) begin
                 leaves_done <= 1'b1;         // rtl-gen/src/merge/merger/leaf_merge.rs:86
@@ -1935,56 +1987,56 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 leaves_done <= 1'b0;         // rtl-gen/src/merge/merger/leaf_merge.rs:86
             end
             if ((crefs_end_sent_and & u_writer_crefs_ready) & choice_ok_or) begin
-                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:350
+                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:368
             end else if (header_fire) begin
-                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:350
+                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:368
             end
             if (!header_hold) begin
                 if (leaves15_push & leaves15_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves14_push & leaves14_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves13_push & leaves13_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves12_push & leaves12_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves11_push & leaves11_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves10_push & leaves10_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves9_push & leaves9_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves8_push & leaves8_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves7_push & leaves7_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves6_push & leaves6_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves5_push & leaves5_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves4_push & leaves4_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves3_push & leaves3_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves2_push & leaves2_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves1_push & leaves1_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (leaves0_push & leaves0_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:374
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
                 end else if (header_fire) begin
-                    leaf_overflow <= 1'b0;   // rtl-gen/src/merge/merger/level_mode.rs:361
+                    leaf_overflow <= 1'b0;   // rtl-gen/src/merge/merger/level_mode.rs:379
                 end
                 if (((u_module_out_valid & merging_and) & (u_module_kind == 2'd0)) & u_module_err_1) begin
-                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:417
+                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:435
                 end else if (header_fire) begin
-                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:417
+                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:435
                 end
             end
             if (base0_end_sent_and_1 & (base0_at_m ? out_is_end : (base0_above_m ? leaves0_end : 1'b1))) begin
-                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (header_fire) begin
                 leaves0_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
@@ -2118,84 +2170,84 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 end
             end
             if (base1_end_sent_and_1 & (base1_at_m ? out_is_end : (base1_above_m ? leaves1_end : 1'b1))) begin
-                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base2_end_sent_and_1 & (base2_at_m ? out_is_end : (base2_above_m ? leaves2_end : 1'b1))) begin
-                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base3_end_sent_and_1 & (base3_at_m ? out_is_end : (base3_above_m ? leaves3_end : 1'b1))) begin
-                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base4_end_sent_and_1 & (base4_at_m ? out_is_end : (base4_above_m ? leaves4_end : 1'b1))) begin
-                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base5_end_sent_and_1 & (base5_at_m ? out_is_end : (base5_above_m ? leaves5_end : 1'b1))) begin
-                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base6_end_sent_and_1 & (base6_at_m ? out_is_end : (base6_above_m ? leaves6_end : 1'b1))) begin
-                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base7_end_sent_and_1 & (base7_at_m ? out_is_end : (base7_above_m ? leaves7_end : 1'b1))) begin
-                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base8_end_sent_and_1 & (base8_at_m ? out_is_end : (base8_above_m ? leaves8_end : 1'b1))) begin
-                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base9_end_sent_and_1 & (base9_at_m ? out_is_end : (base9_above_m ? leaves9_end : 1'b1))) begin
-                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base10_end_sent_and_1 & (base10_at_m ? out_is_end : (base10_above_m ? leaves10_end : 1'b1))) begin
-                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base11_end_sent_and_1 & (base11_at_m ? out_is_end : (base11_above_m ? leaves11_end : 1'b1))) begin
-                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base12_end_sent_and_1 & (base12_at_m ? out_is_end : (base12_above_m ? leaves12_end : 1'b1))) begin
-                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base13_end_sent_and_1 & (base13_at_m ? out_is_end : (base13_above_m ? leaves13_end : 1'b1))) begin
-                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base14_end_sent_and_1 & (base14_at_m ? out_is_end : (base14_above_m ? leaves14_end : 1'b1))) begin
-                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if (base15_end_sent_and_1 & (base15_at_m ? out_is_end : (base15_above_m ? leaves15_end : 1'b1))) begin
-                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             if ((base16_end_sent_and & u_builder_base16_ready) & (base16_at_m ? out_is_end : 1'b1)) begin
-                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end else if (header_fire) begin
-                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:400
+                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
             end
             done_pulse <= header_fire;
         end

@@ -8,9 +8,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     input  wire cfg_valid,                 // rtl-gen/src/merge/merger/mod.rs:263
     input  wire [568:0] cfg_data,          // rtl-gen/src/merge/merger/mod.rs:263
     output wire cfg_ready,                 // rtl-gen/src/merge/merger/mod.rs:263
-    input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:126
-    output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:134
-    output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:135
+    input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:127
+    output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:135
+    output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:136
     input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:435
     input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:435
     output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:435
@@ -95,20 +95,20 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:432
     output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:432
     input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:432
-    output wire w_filling,                 // rtl-gen/src/merge/merger/tail.rs:111
-    output wire w_drain_records,           // rtl-gen/src/merge/merger/tail.rs:111
-    output wire w_drain_refs,              // rtl-gen/src/merge/merger/tail.rs:111
-    input  wire header_ready,              // rtl-gen/src/merge/merger/tail.rs:129
-    output wire header_valid,              // rtl-gen/src/merge/merger/tail.rs:145
-    output wire [94:0] header_data,        // rtl-gen/src/merge/merger/tail.rs:146
-    output wire done,                      // rtl-gen/src/merge/merger/tail.rs:150
-    output wire idle,                      // rtl-gen/src/merge/merger/tail.rs:152
-    output wire module_done                // rtl-gen/src/merge/merger/tail.rs:153
+    output wire w_filling,                 // rtl-gen/src/merge/merger/tail.rs:115
+    output wire w_drain_records,           // rtl-gen/src/merge/merger/tail.rs:115
+    output wire w_drain_refs,              // rtl-gen/src/merge/merger/tail.rs:115
+    input  wire header_ready,              // rtl-gen/src/merge/merger/tail.rs:133
+    output wire header_valid,              // rtl-gen/src/merge/merger/tail.rs:149
+    output wire [94:0] header_data,        // rtl-gen/src/merge/merger/tail.rs:150
+    output wire done,                      // rtl-gen/src/merge/merger/tail.rs:154
+    output wire idle,                      // rtl-gen/src/merge/merger/tail.rs:160
+    output wire module_done                // rtl-gen/src/merge/merger/tail.rs:161
 );
-    localparam [2:0] COUNT = 3'd1;           // rtl-gen/src/merge/merger/level_mode.rs:214
-    localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:214
-    localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:214
-    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:214
+    localparam [2:0] COUNT = 3'd1;           // rtl-gen/src/merge/merger/level_mode.rs:215
+    localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:215
+    localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:215
+    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:215
     reg [177:0] leaves0 [0:15];              // rtl-gen/src/drop_fifo.rs:56
     reg [177:0] leaves1 [0:15];              // rtl-gen/src/drop_fifo.rs:56
     reg [177:0] leaves2 [0:15];              // rtl-gen/src/drop_fifo.rs:56
@@ -324,133 +324,133 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire used1;                              // rtl-gen/src/merge/merger/level_mode.rs:49
     wire used2;                              // rtl-gen/src/merge/merger/level_mode.rs:49
     wire used3;                              // rtl-gen/src/merge/merger/level_mode.rs:49
-    wire u_module_chosen_eq;                 // rtl-gen/src/merge/merger/level_mode.rs:131
-    wire choice_waits;                       // rtl-gen/src/merge/merger/level_mode.rs:131
-    wire choice_waits_not;                   // rtl-gen/src/merge/merger/level_mode.rs:132
-    wire u_module_and;                       // rtl-gen/src/merge/merger/level_mode.rs:132
-    wire choice_seen;                        // rtl-gen/src/merge/merger/level_mode.rs:137
-    reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:138
-    reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:139
-    reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:140
+    wire u_module_chosen_eq;                 // rtl-gen/src/merge/merger/level_mode.rs:132
+    wire choice_waits;                       // rtl-gen/src/merge/merger/level_mode.rs:132
+    wire choice_waits_not;                   // rtl-gen/src/merge/merger/level_mode.rs:133
+    wire u_module_and;                       // rtl-gen/src/merge/merger/level_mode.rs:133
+    wire choice_seen;                        // rtl-gen/src/merge/merger/level_mode.rs:138
+    reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:139
+    reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:140
+    reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:141
     wire [1:0] u_module_err;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire u_module_err_eq;                    // rtl-gen/src/merge/merger/level_mode.rs:142
+    wire u_module_err_eq;                    // rtl-gen/src/merge/merger/level_mode.rs:143
     wire [4:0] u_module_lod;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:144
-    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:191
-    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:192
-    wire [3:0] cfg_fire_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:193
-    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:195
-    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire fetch0_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire fetch0_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:204
-    reg [2:0] phase0;                        // rtl-gen/src/merge/merger/level_mode.rs:212
-    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire phase0_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire final_now0;                         // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire phase0_or;                          // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire final_now0_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:225
-    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:227
-    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:230
-    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:242
+    wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:145
+    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:192
+    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:193
+    wire [3:0] cfg_fire_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:194
+    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:196
+    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire fetch0_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:204
+    wire fetch0_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:205
+    reg [2:0] phase0;                        // rtl-gen/src/merge/merger/level_mode.rs:213
+    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:218
+    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire phase0_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire final_now0;                         // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire phase0_or;                          // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire final_now0_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:226
+    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:228
+    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:231
+    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:240
+    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:243
     wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:252
-    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:252
-    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:256
-    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:257
-    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:259
-    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:260
-    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:263
-    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:264
-    wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:276
-    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:278
+    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:253
+    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:253
+    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:257
+    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:258
+    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:260
+    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:261
+    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:264
+    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:265
+    wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:277
+    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:279
     wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
-    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire fetch1_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire fetch1_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:204
-    reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:212
-    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire phase1_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire final_now1;                         // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire phase1_or;                          // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire final_now1_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:225
-    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:227
-    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:230
-    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:242
+    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire fetch1_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:204
+    wire fetch1_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:205
+    reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:213
+    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:218
+    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire phase1_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire final_now1;                         // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire phase1_or;                          // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire final_now1_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:226
+    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:228
+    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:231
+    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:240
+    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:243
     wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:252
-    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:252
-    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:256
-    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:257
-    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:259
-    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:260
-    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:264
+    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:253
+    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:253
+    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:257
+    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:258
+    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:260
+    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:261
+    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:265
     wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
-    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire fetch2_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire fetch2_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:204
-    reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:212
-    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire phase2_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire final_now2;                         // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire phase2_or;                          // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire final_now2_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:225
-    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:227
-    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:230
-    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:242
+    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire fetch2_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:204
+    wire fetch2_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:205
+    reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:213
+    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:218
+    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire phase2_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire final_now2;                         // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire phase2_or;                          // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire final_now2_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:226
+    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:228
+    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:231
+    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:240
+    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:243
     wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:252
-    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:252
-    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:256
-    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:257
-    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:259
-    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:260
-    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:264
+    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:253
+    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:253
+    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:257
+    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:258
+    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:260
+    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:261
+    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:265
     wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
-    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire fetch3_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:203
-    wire fetch3_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:204
-    reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:212
-    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire phase3_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire final_now3;                         // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire phase3_or;                          // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire final_now3_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:225
-    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:227
-    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:230
-    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:242
+    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire fetch3_cfg_now;                     // rtl-gen/src/merge/merger/level_mode.rs:204
+    wire fetch3_cfg_pending_or;              // rtl-gen/src/merge/merger/level_mode.rs:205
+    reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:213
+    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:218
+    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire phase3_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire final_now3;                         // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire phase3_or;                          // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire final_now3_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:226
+    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:228
+    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:231
+    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:240
+    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:243
     wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:252
-    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:252
-    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:256
-    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:257
-    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:259
-    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:264
+    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:253
+    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:253
+    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:257
+    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:258
+    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:260
+    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:265
     wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
@@ -489,363 +489,363 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaf_take;                          // rtl-gen/src/merge/merger/leaf_merge.rs:79
     wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:344
+    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:344
+    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:345
     wire u_module_err_1;                     // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:141
-    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:347
-    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:356
-    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:356
-    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:357
-    reg leaf_overflow;                       // rtl-gen/src/merge/merger/level_mode.rs:378
-    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:348
+    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:355
+    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:357
+    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:357
+    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:358
+    reg leaf_overflow;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves0_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves0_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves0_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves0_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves0_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves0_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves0_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves0_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
-    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:407
+    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves1_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves1_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves1_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves1_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves1_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves1_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves1_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves1_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
-    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:407
+    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves2_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves2_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves2_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves2_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves2_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves2_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves2_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves2_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:419
-    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:420
+    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves3_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves3_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves3_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves3_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves3_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves3_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves3_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves3_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:420
-    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:421
+    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves4_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves4_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves4_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves4_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves4_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves4_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves4_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves4_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
-    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:407
+    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves5_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves5_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves5_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves5_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves5_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves5_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves5_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves5_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:419
-    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:420
+    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves6_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves6_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves6_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves6_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves6_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves6_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves6_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves6_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
-    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:407
+    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves7_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves7_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves7_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves7_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves7_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves7_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves7_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves7_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:420
-    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:421
+    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves8_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves8_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves8_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves8_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves8_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves8_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves8_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves8_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:419
-    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:420
+    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves9_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves9_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves9_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves9_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves9_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves9_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves9_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves9_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:406
-    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:407
+    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves10_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves10_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves10_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves10_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves10_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves10_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves10_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves10_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
-    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:407
+    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves11_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves11_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves11_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves11_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves11_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves11_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves11_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves11_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:419
-    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:420
-    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:420
+    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:421
+    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves12_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves12_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves12_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves12_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves12_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves12_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves12_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves12_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
-    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:407
+    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves13_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves13_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves13_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves13_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves13_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves13_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves13_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves13_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
-    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:407
+    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves14_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves14_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves14_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves14_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves14_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves14_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves14_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves14_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:419
-    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
+    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:420
+    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:386
     reg [4:0] leaves15_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves15_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves15_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves15_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:390
+    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:391
     wire leaves15_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves15_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:395
     wire [149:0] leaves15_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves15_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:400
-    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:403
-    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:406
-    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:420
-    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:410
-    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:410
-    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:419
-    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:424
-    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:423
-    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:432
+    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:401
+    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:404
+    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:407
+    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:421
+    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:384
+    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:386
+    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:411
+    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:411
+    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:420
+    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:425
+    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:424
+    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:433
     wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:429
     wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:429
     wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:429
-    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:120
-    wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:123
-    wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:127
-    reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:148
-    wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:151
+    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:124
+    wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:127
+    wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:131
+    reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:152
+    wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:156
 
     assign header_fire = header_offered & header_ready;
     assign header_hold = header_offered & (~header_ready);
@@ -1376,7 +1376,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign header_valid = header_offered;
     assign header_data = {queued ? fetch_rank_header : fetch_rank, queued ? fetch_err_header : fetch_err, count_overflow, leaf_overflow, u_writer_header_data};
     assign done = done_pulse;
-    assign merger_idle = busy_not & dropping0_and;
+    assign merger_idle = (busy_not & dropping0_and) & u_module_idle;
     assign idle = merger_idle;
     assign module_done = u_module_done;
 
@@ -1832,24 +1832,24 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
             done_pulse <= 1'b0;
         end else begin
             if ((used0_and_1 & phase0_or) & (~final_now0_mux)) begin
-                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:290
+                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:291
             end else if (u_fetch0_and & (u_fetch0_kind == 2'd3)) begin
-                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:290
+                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:291
             end
             if ((used1_and_1 & phase1_or) & (~final_now1_mux)) begin
-                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:290
+                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:291
             end else if (u_fetch1_and & (u_fetch1_kind == 2'd3)) begin
-                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:290
+                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:291
             end
             if ((used2_and_1 & phase2_or) & (~final_now2_mux)) begin
-                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:290
+                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:291
             end else if (u_fetch2_and & (u_fetch2_kind == 2'd3)) begin
-                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:290
+                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:291
             end
             if ((used3_and_1 & phase3_or) & (~final_now3_mux)) begin
-                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:290
+                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:291
             end else if (u_fetch3_and & (u_fetch3_kind == 2'd3)) begin
-                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:290
+                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:291
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
@@ -1857,14 +1857,14 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:391
                 busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:270
                 cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:317
-                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:277
-                cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:285
-                phase1 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:277
-                cmd_lod1 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:285
-                phase2 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:277
-                cmd_lod2 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:285
-                phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:277
-                cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:285
+                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:278
+                cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:286
+                phase1 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:278
+                cmd_lod1 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:286
+                phase2 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:278
+                cmd_lod2 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:286
+                phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:278
+                cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:286
                 fetch_err_header <= fetch_err; // rtl-gen/src/merge/merger/mod.rs:229
                 fetch_rank_header <= fetch_rank; // rtl-gen/src/merge/merger/mod.rs:229
             end else begin
@@ -1880,58 +1880,58 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 if (step0) begin
                     if (phase0_eq) begin
                         if (used0 | (cmd_lod0 == hi)) begin
-                            phase0 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:267
+                            phase0 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:268
                         end
                     end else begin
-                        phase0 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:266
+                        phase0 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:267
                     end
                 end else if (phase0_eq_2 & choice_known_or) begin
-                    phase0 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:281
+                    phase0 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:282
                 end
                 if (step0 & phase0_eq) begin
-                    cmd_lod0 <= cmd_lod0 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:287
+                    cmd_lod0 <= cmd_lod0 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:288
                 end
                 if (step1) begin
                     if (phase1_eq) begin
                         if (used1 | (cmd_lod1 == hi)) begin
-                            phase1 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:267
+                            phase1 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:268
                         end
                     end else begin
-                        phase1 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:266
+                        phase1 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:267
                     end
                 end else if (phase1_eq_2 & choice_known_or) begin
-                    phase1 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:281
+                    phase1 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:282
                 end
                 if (step1 & phase1_eq) begin
-                    cmd_lod1 <= cmd_lod1 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:287
+                    cmd_lod1 <= cmd_lod1 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:288
                 end
                 if (step2) begin
                     if (phase2_eq) begin
                         if (used2 | (cmd_lod2 == hi)) begin
-                            phase2 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:267
+                            phase2 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:268
                         end
                     end else begin
-                        phase2 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:266
+                        phase2 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:267
                     end
                 end else if (phase2_eq_2 & choice_known_or) begin
-                    phase2 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:281
+                    phase2 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:282
                 end
                 if (step2 & phase2_eq) begin
-                    cmd_lod2 <= cmd_lod2 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:287
+                    cmd_lod2 <= cmd_lod2 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:288
                 end
                 if (step3) begin
                     if (phase3_eq) begin
                         if (used3 | (cmd_lod3 == hi)) begin
-                            phase3 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:267
+                            phase3 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:268
                         end
                     end else begin
-                        phase3 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:266
+                        phase3 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:267
                     end
                 end else if (phase3_eq_2 & choice_known_or) begin
-                    phase3 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:281
+                    phase3 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:282
                 end
                 if (step3 & phase3_eq) begin
-                    cmd_lod3 <= cmd_lod3 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:287
+                    cmd_lod3 <= cmd_lod3 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:288
                 end
             end
             if ((cfg_fire & busy) & (~header_fire)) begin
@@ -1940,46 +1940,46 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 queued <= 1'b0;              // rtl-gen/src/merge/merger/mod.rs:271
             end
             if (choice_seen) begin
-                choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:141
-                choice_ok <= u_module_err_eq; // rtl-gen/src/merge/merger/level_mode.rs:142
-                merge_lod <= u_module_lod;   // rtl-gen/src/merge/merger/level_mode.rs:143
+                choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:142
+                choice_ok <= u_module_err_eq; // rtl-gen/src/merge/merger/level_mode.rs:143
+                merge_lod <= u_module_lod;   // rtl-gen/src/merge/merger/level_mode.rs:144
             end else if (header_fire) begin
-                choice_known <= 1'b0;        // rtl-gen/src/merge/merger/level_mode.rs:141
-                choice_ok <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:142
+                choice_known <= 1'b0;        // rtl-gen/src/merge/merger/level_mode.rs:142
+                choice_ok <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:143
             end
             if (!flags_hold) begin
-                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/level_mode.rs:300
+                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/level_mode.rs:301
                 if (u_fetch3_and_1) begin
-                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/level_mode.rs:261
+                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/level_mode.rs:262
                 end else if (u_fetch2_and_1) begin
-                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/level_mode.rs:261
+                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/level_mode.rs:262
                 end else if (u_fetch1_and_1) begin
-                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/level_mode.rs:261
+                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/level_mode.rs:262
                 end else if (u_fetch0_and_1) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:261
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:262
                 end else if (cfg_fire) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:194
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:195
                 end
             end
             if (fetch0_cfg_pending_or & u_fetch0_cfg_ready) begin
-                fetch0_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:210
+                fetch0_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:211
             end else if (fetch0_cfg_now) begin
-                fetch0_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:210
+                fetch0_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:211
             end
             if (fetch1_cfg_pending_or & u_fetch1_cfg_ready) begin
-                fetch1_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:210
+                fetch1_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:211
             end else if (fetch1_cfg_now) begin
-                fetch1_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:210
+                fetch1_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:211
             end
             if (fetch2_cfg_pending_or & u_fetch2_cfg_ready) begin
-                fetch2_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:210
+                fetch2_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:211
             end else if (fetch2_cfg_now) begin
-                fetch2_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:210
+                fetch2_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:211
             end
             if (fetch3_cfg_pending_or & u_fetch3_cfg_ready) begin
-                fetch3_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:210
+                fetch3_cfg_pending <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:211
             end else if (fetch3_cfg_now) begin
-                fetch3_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:210
+                fetch3_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:211
             end
             if (leaves_all_valid & leaves_all_end) begin
                 leaves_done <= 1'b1;         // rtl-gen/src/merge/merger/leaf_merge.rs:86
@@ -1987,56 +1987,56 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 leaves_done <= 1'b0;         // rtl-gen/src/merge/merger/leaf_merge.rs:86
             end
             if ((crefs_end_sent_and & u_writer_crefs_ready) & choice_ok_or) begin
-                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:368
+                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:369
             end else if (header_fire) begin
-                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:368
+                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:369
             end
             if (!header_hold) begin
                 if (leaves15_push & leaves15_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves14_push & leaves14_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves13_push & leaves13_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves12_push & leaves12_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves11_push & leaves11_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves10_push & leaves10_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves9_push & leaves9_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves8_push & leaves8_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves7_push & leaves7_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves6_push & leaves6_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves5_push & leaves5_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves4_push & leaves4_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves3_push & leaves3_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves2_push & leaves2_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves1_push & leaves1_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (leaves0_push & leaves0_full) begin
-                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:392
+                    leaf_overflow <= 1'b1;   // rtl-gen/src/merge/merger/level_mode.rs:393
                 end else if (header_fire) begin
-                    leaf_overflow <= 1'b0;   // rtl-gen/src/merge/merger/level_mode.rs:379
+                    leaf_overflow <= 1'b0;   // rtl-gen/src/merge/merger/level_mode.rs:380
                 end
                 if (((u_module_out_valid & merging_and) & (u_module_kind == 2'd0)) & u_module_err_1) begin
-                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:435
+                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:436
                 end else if (header_fire) begin
-                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:435
+                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:436
                 end
             end
             if (base0_end_sent_and_1 & (base0_at_m ? out_is_end : (base0_above_m ? leaves0_end : 1'b1))) begin
-                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (header_fire) begin
                 leaves0_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
@@ -2170,84 +2170,84 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 end
             end
             if (base1_end_sent_and_1 & (base1_at_m ? out_is_end : (base1_above_m ? leaves1_end : 1'b1))) begin
-                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base2_end_sent_and_1 & (base2_at_m ? out_is_end : (base2_above_m ? leaves2_end : 1'b1))) begin
-                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base3_end_sent_and_1 & (base3_at_m ? out_is_end : (base3_above_m ? leaves3_end : 1'b1))) begin
-                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base4_end_sent_and_1 & (base4_at_m ? out_is_end : (base4_above_m ? leaves4_end : 1'b1))) begin
-                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base5_end_sent_and_1 & (base5_at_m ? out_is_end : (base5_above_m ? leaves5_end : 1'b1))) begin
-                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base6_end_sent_and_1 & (base6_at_m ? out_is_end : (base6_above_m ? leaves6_end : 1'b1))) begin
-                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base7_end_sent_and_1 & (base7_at_m ? out_is_end : (base7_above_m ? leaves7_end : 1'b1))) begin
-                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base8_end_sent_and_1 & (base8_at_m ? out_is_end : (base8_above_m ? leaves8_end : 1'b1))) begin
-                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base9_end_sent_and_1 & (base9_at_m ? out_is_end : (base9_above_m ? leaves9_end : 1'b1))) begin
-                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:418
+                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base10_end_sent_and_1 & (base10_at_m ? out_is_end : (base10_above_m ? leaves10_end : 1'b1))) begin
-                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base11_end_sent_and_1 & (base11_at_m ? out_is_end : (base11_above_m ? leaves11_end : 1'b1))) begin
-                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base12_end_sent_and_1 & (base12_at_m ? out_is_end : (base12_above_m ? leaves12_end : 1'b1))) begin
-                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base13_end_sent_and_1 & (base13_at_m ? out_is_end : (base13_above_m ? leaves13_end : 1'b1))) begin
-                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base14_end_sent_and_1 & (base14_at_m ? out_is_end : (base14_above_m ? leaves14_end : 1'b1))) begin
-                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if (base15_end_sent_and_1 & (base15_at_m ? out_is_end : (base15_above_m ? leaves15_end : 1'b1))) begin
-                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             if ((base16_end_sent_and & u_builder_base16_ready) & (base16_at_m ? out_is_end : 1'b1)) begin
-                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end else if (header_fire) begin
-                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:418
+                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:419
             end
             done_pulse <= header_fire;
         end

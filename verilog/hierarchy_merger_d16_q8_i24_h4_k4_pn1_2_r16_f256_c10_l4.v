@@ -8,9 +8,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     input  wire cfg_valid,                  // rtl-gen/src/merge/merger/mod.rs:263
     input  wire [568:0] cfg_data,           // rtl-gen/src/merge/merger/mod.rs:263
     output wire cfg_ready,                  // rtl-gen/src/merge/merger/mod.rs:263
-    input  wire report_ready,               // rtl-gen/src/merge/merger/per_node_mode.rs:145
-    output wire report_valid,               // rtl-gen/src/merge/merger/per_node_mode.rs:146
-    output wire [65:0] report_data,         // rtl-gen/src/merge/merger/per_node_mode.rs:147
+    input  wire report_ready,               // rtl-gen/src/merge/merger/per_node_mode.rs:146
+    output wire report_valid,               // rtl-gen/src/merge/merger/per_node_mode.rs:147
+    output wire [65:0] report_data,         // rtl-gen/src/merge/merger/per_node_mode.rs:148
     input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:435
     input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:435
     output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:435
@@ -119,15 +119,15 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:432
     output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:432
     input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:432
-    output wire w_filling,                  // rtl-gen/src/merge/merger/tail.rs:111
-    output wire w_drain_records,            // rtl-gen/src/merge/merger/tail.rs:111
-    output wire w_drain_refs,               // rtl-gen/src/merge/merger/tail.rs:111
-    input  wire header_ready,               // rtl-gen/src/merge/merger/tail.rs:129
-    output wire header_valid,               // rtl-gen/src/merge/merger/tail.rs:145
-    output wire [94:0] header_data,         // rtl-gen/src/merge/merger/tail.rs:146
-    output wire done,                       // rtl-gen/src/merge/merger/tail.rs:150
-    output wire idle,                       // rtl-gen/src/merge/merger/tail.rs:152
-    output wire module_done                 // rtl-gen/src/merge/merger/tail.rs:153
+    output wire w_filling,                  // rtl-gen/src/merge/merger/tail.rs:115
+    output wire w_drain_records,            // rtl-gen/src/merge/merger/tail.rs:115
+    output wire w_drain_refs,               // rtl-gen/src/merge/merger/tail.rs:115
+    input  wire header_ready,               // rtl-gen/src/merge/merger/tail.rs:133
+    output wire header_valid,               // rtl-gen/src/merge/merger/tail.rs:149
+    output wire [94:0] header_data,         // rtl-gen/src/merge/merger/tail.rs:150
+    output wire done,                       // rtl-gen/src/merge/merger/tail.rs:154
+    output wire idle,                       // rtl-gen/src/merge/merger/tail.rs:160
+    output wire module_done                 // rtl-gen/src/merge/merger/tail.rs:161
 );
     reg [179:0] base0_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
     reg [179:0] base1_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
@@ -367,97 +367,97 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire u_module_descend;                   // rtl-gen/src/merge/merger/mod.rs:141
     wire u_module_pass_end;                  // rtl-gen/src/merge/merger/mod.rs:141
     wire u_module_more;                      // rtl-gen/src/merge/merger/mod.rs:141
-    wire [55:0] report_narrow;               // rtl-gen/src/merge/merger/per_node_mode.rs:139
-    reg report_top_taken;                    // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire u_module_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:146
-    reg report0_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:151
-    wire report0_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:152
-    wire u_module_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:153
-    reg report1_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:151
-    wire report1_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:152
-    wire u_module_and_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:153
-    wire report_top_taken_and;               // rtl-gen/src/merge/merger/per_node_mode.rs:157
-    reg report2_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:151
-    wire report2_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:152
-    wire u_module_and_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:153
-    reg report3_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:151
-    wire report3_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:152
-    wire u_module_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:153
-    wire report_all_took;                    // rtl-gen/src/merge/merger/per_node_mode.rs:157
-    wire report_fire;                        // rtl-gen/src/merge/merger/per_node_mode.rs:162
-    wire report_fire_and;                    // rtl-gen/src/merge/merger/per_node_mode.rs:168
-    wire next_pass;                          // rtl-gen/src/merge/merger/per_node_mode.rs:168
-    reg report_drained;                      // rtl-gen/src/merge/merger/per_node_mode.rs:169
-    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/per_node_mode.rs:203
-    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/per_node_mode.rs:204
-    wire [3:0] header_fire_mux_2;            // rtl-gen/src/merge/merger/per_node_mode.rs:205
-    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/per_node_mode.rs:207
-    wire [180:0] const_cat_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:208
-    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:212
-    reg cmd0_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:221
-    wire [13:0] range_good_cat;              // rtl-gen/src/merge/merger/per_node_mode.rs:222
-    wire cmd0_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:232
+    wire [55:0] report_narrow;               // rtl-gen/src/merge/merger/per_node_mode.rs:140
+    reg report_top_taken;                    // rtl-gen/src/merge/merger/per_node_mode.rs:145
+    wire u_module_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:147
+    reg report0_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:152
+    wire report0_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:153
+    wire u_module_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:154
+    reg report1_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:152
+    wire report1_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:153
+    wire u_module_and_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:154
+    wire report_top_taken_and;               // rtl-gen/src/merge/merger/per_node_mode.rs:158
+    reg report2_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:152
+    wire report2_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:153
+    wire u_module_and_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:154
+    reg report3_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:152
+    wire report3_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:153
+    wire u_module_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:154
+    wire report_all_took;                    // rtl-gen/src/merge/merger/per_node_mode.rs:158
+    wire report_fire;                        // rtl-gen/src/merge/merger/per_node_mode.rs:163
+    wire report_fire_and;                    // rtl-gen/src/merge/merger/per_node_mode.rs:169
+    wire next_pass;                          // rtl-gen/src/merge/merger/per_node_mode.rs:169
+    reg report_drained;                      // rtl-gen/src/merge/merger/per_node_mode.rs:170
+    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/per_node_mode.rs:204
+    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/per_node_mode.rs:205
+    wire [3:0] header_fire_mux_2;            // rtl-gen/src/merge/merger/per_node_mode.rs:206
+    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/per_node_mode.rs:208
+    wire [180:0] const_cat_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:209
+    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:213
+    reg cmd0_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:222
+    wire [13:0] range_good_cat;              // rtl-gen/src/merge/merger/per_node_mode.rs:223
+    wire cmd0_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:233
     wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:141
     wire u_fetch0_probe;                     // rtl-gen/src/merge/merger/mod.rs:141
-    reg end_owed0;                           // rtl-gen/src/merge/merger/per_node_mode.rs:249
-    wire used0_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire virtual_end0;                       // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire dropping0_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:254
-    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
-    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
-    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:265
-    wire range_good_not;                     // rtl-gen/src/merge/merger/per_node_mode.rs:267
+    reg end_owed0;                           // rtl-gen/src/merge/merger/per_node_mode.rs:250
+    wire used0_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:251
+    wire virtual_end0;                       // rtl-gen/src/merge/merger/per_node_mode.rs:251
+    wire dropping0_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
+    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:256
+    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:265
+    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:266
+    wire range_good_not;                     // rtl-gen/src/merge/merger/per_node_mode.rs:268
     wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:429
-    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:212
-    reg cmd1_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:221
-    wire cmd1_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:232
+    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:213
+    reg cmd1_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:222
+    wire cmd1_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:233
     wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:141
     wire u_fetch1_probe;                     // rtl-gen/src/merge/merger/mod.rs:141
-    reg end_owed1;                           // rtl-gen/src/merge/merger/per_node_mode.rs:249
-    wire used1_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire virtual_end1;                       // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire dropping1_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:254
-    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
-    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
-    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:265
+    reg end_owed1;                           // rtl-gen/src/merge/merger/per_node_mode.rs:250
+    wire used1_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:251
+    wire virtual_end1;                       // rtl-gen/src/merge/merger/per_node_mode.rs:251
+    wire dropping1_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
+    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:256
+    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:265
+    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:266
     wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:429
-    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:212
-    reg cmd2_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:221
-    wire cmd2_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:232
+    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:213
+    reg cmd2_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:222
+    wire cmd2_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:233
     wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:141
     wire u_fetch2_probe;                     // rtl-gen/src/merge/merger/mod.rs:141
-    reg end_owed2;                           // rtl-gen/src/merge/merger/per_node_mode.rs:249
-    wire used2_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire virtual_end2;                       // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire dropping2_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:254
-    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
-    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
-    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:265
+    reg end_owed2;                           // rtl-gen/src/merge/merger/per_node_mode.rs:250
+    wire used2_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:251
+    wire virtual_end2;                       // rtl-gen/src/merge/merger/per_node_mode.rs:251
+    wire dropping2_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
+    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:256
+    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:265
+    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:266
     wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:429
-    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:212
-    reg cmd3_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:221
-    wire cmd3_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:232
+    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:213
+    reg cmd3_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:222
+    wire cmd3_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:233
     wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:141
     wire u_fetch3_probe;                     // rtl-gen/src/merge/merger/mod.rs:141
-    reg end_owed3;                           // rtl-gen/src/merge/merger/per_node_mode.rs:249
-    wire used3_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire virtual_end3;                       // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire dropping3_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:254
-    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
-    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
+    reg end_owed3;                           // rtl-gen/src/merge/merger/per_node_mode.rs:250
+    wire used3_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:251
+    wire virtual_end3;                       // rtl-gen/src/merge/merger/per_node_mode.rs:251
+    wire dropping3_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
+    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:256
+    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:265
     wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
     wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:429
     wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:429
@@ -496,237 +496,237 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:141
     wire [149:0] leaf_best_data_rec;         // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaf_best_data_ref;          // rtl-gen/src/merge/merger/mod.rs:141
-    wire [179:0] const_cat_2;                // rtl-gen/src/merge/merger/per_node_mode.rs:324
+    wire [179:0] const_cat_2;                // rtl-gen/src/merge/merger/per_node_mode.rs:325
     wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire out_is_ref;                         // rtl-gen/src/merge/merger/per_node_mode.rs:333
-    wire out_is_end;                         // rtl-gen/src/merge/merger/per_node_mode.rs:334
+    wire out_is_ref;                         // rtl-gen/src/merge/merger/per_node_mode.rs:334
+    wire out_is_end;                         // rtl-gen/src/merge/merger/per_node_mode.rs:335
     wire u_module_err;                       // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:141
-    wire [4:0] u_module_rec_lod;             // rtl-gen/src/merge/merger/per_node_mode.rs:338
-    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/per_node_mode.rs:339
-    wire out_is_node;                        // rtl-gen/src/merge/merger/per_node_mode.rs:344
-    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:348
-    wire cref_is_ref;                        // rtl-gen/src/merge/merger/per_node_mode.rs:350
-    wire crefs_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:351
-    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/per_node_mode.rs:351
-    wire cref_is_ref_not;                    // rtl-gen/src/merge/merger/per_node_mode.rs:354
-    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/per_node_mode.rs:360
-    reg count_overflow;                      // rtl-gen/src/merge/merger/per_node_mode.rs:362
-    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/per_node_mode.rs:372
-    wire base_open;                          // rtl-gen/src/merge/merger/per_node_mode.rs:374
-    reg base0_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire [4:0] u_module_rec_lod;             // rtl-gen/src/merge/merger/per_node_mode.rs:339
+    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/per_node_mode.rs:340
+    wire out_is_node;                        // rtl-gen/src/merge/merger/per_node_mode.rs:345
+    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:349
+    wire cref_is_ref;                        // rtl-gen/src/merge/merger/per_node_mode.rs:351
+    wire crefs_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:352
+    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/per_node_mode.rs:352
+    wire cref_is_ref_not;                    // rtl-gen/src/merge/merger/per_node_mode.rs:355
+    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/per_node_mode.rs:361
+    reg count_overflow;                      // rtl-gen/src/merge/merger/per_node_mode.rs:363
+    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/per_node_mode.rs:373
+    wire base_open;                          // rtl-gen/src/merge/merger/per_node_mode.rs:375
+    reg base0_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base0_wr;                      // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base0_rd;                      // rtl-gen/src/drop_fifo.rs:58
     wire base0_empty;                        // rtl-gen/src/drop_fifo.rs:59
     wire base0_full;                         // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt;                              // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and;                    // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base0_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt;                              // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and;                    // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base0_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base0_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and;                     // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and;                      // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base1_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and;                     // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and;                      // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base1_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base1_wr;                      // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base1_rd;                      // rtl-gen/src/drop_fifo.rs:58
     wire base1_empty;                        // rtl-gen/src/drop_fifo.rs:59
     wire base1_full;                         // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_1;                            // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base1_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_1;                            // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base1_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base1_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_3;                    // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base2_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_3;                    // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base2_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base2_wr;                      // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base2_rd;                      // rtl-gen/src/drop_fifo.rs:58
     wire base2_empty;                        // rtl-gen/src/drop_fifo.rs:59
     wire base2_full;                         // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_2;                            // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_2;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base2_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_2;                            // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_2;                  // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base2_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base2_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_2;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_4;                    // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_5;                    // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base3_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_2;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_4;                    // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_5;                    // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base3_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base3_wr;                      // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base3_rd;                      // rtl-gen/src/drop_fifo.rs:58
     wire base3_empty;                        // rtl-gen/src/drop_fifo.rs:59
     wire base3_full;                         // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_3;                            // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_3;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base3_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_3;                            // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_3;                  // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base3_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base3_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_3;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_6;                    // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_7;                    // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base4_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_3;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_6;                    // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_7;                    // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base4_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base4_wr;                      // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base4_rd;                      // rtl-gen/src/drop_fifo.rs:58
     wire base4_empty;                        // rtl-gen/src/drop_fifo.rs:59
     wire base4_full;                         // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_4;                            // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_4;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base4_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_4;                            // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_4;                  // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base4_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base4_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_4;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_8;                    // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_9;                    // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base5_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_4;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_8;                    // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_9;                    // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base5_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base5_wr;                      // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base5_rd;                      // rtl-gen/src/drop_fifo.rs:58
     wire base5_empty;                        // rtl-gen/src/drop_fifo.rs:59
     wire base5_full;                         // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_5;                            // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_5;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base5_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_5;                            // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_5;                  // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base5_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base5_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_5;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_10;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_11;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base6_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_5;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_10;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_11;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base6_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base6_wr;                      // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base6_rd;                      // rtl-gen/src/drop_fifo.rs:58
     wire base6_empty;                        // rtl-gen/src/drop_fifo.rs:59
     wire base6_full;                         // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_6;                            // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_6;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base6_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_6;                            // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_6;                  // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base6_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base6_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_6;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_12;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_13;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base7_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_6;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_12;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_13;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base7_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base7_wr;                      // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base7_rd;                      // rtl-gen/src/drop_fifo.rs:58
     wire base7_empty;                        // rtl-gen/src/drop_fifo.rs:59
     wire base7_full;                         // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_7;                            // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_7;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base7_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_7;                            // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_7;                  // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base7_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base7_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_7;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_14;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_15;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base8_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_7;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_14;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_15;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base8_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base8_wr;                      // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base8_rd;                      // rtl-gen/src/drop_fifo.rs:58
     wire base8_empty;                        // rtl-gen/src/drop_fifo.rs:59
     wire base8_full;                         // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_8;                            // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_8;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base8_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_8;                            // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_8;                  // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base8_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base8_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_8;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_16;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_17;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base9_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_8;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_16;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_17;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base9_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base9_wr;                      // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base9_rd;                      // rtl-gen/src/drop_fifo.rs:58
     wire base9_empty;                        // rtl-gen/src/drop_fifo.rs:59
     wire base9_full;                         // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_9;                            // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_9;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base9_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_9;                            // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_9;                  // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base9_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base9_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_9;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_18;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_19;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base10_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_9;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_18;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_19;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base10_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base10_wr;                     // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base10_rd;                     // rtl-gen/src/drop_fifo.rs:58
     wire base10_empty;                       // rtl-gen/src/drop_fifo.rs:59
     wire base10_full;                        // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_10;                           // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_10;                 // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base10_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_10;                           // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_10;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base10_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base10_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_10;                  // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_20;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_21;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base11_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_10;                  // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_20;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_21;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base11_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base11_wr;                     // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base11_rd;                     // rtl-gen/src/drop_fifo.rs:58
     wire base11_empty;                       // rtl-gen/src/drop_fifo.rs:59
     wire base11_full;                        // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_11;                           // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_11;                 // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base11_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_11;                           // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_11;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base11_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base11_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_11;                  // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_22;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_23;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base12_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_11;                  // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_22;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_23;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base12_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base12_wr;                     // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base12_rd;                     // rtl-gen/src/drop_fifo.rs:58
     wire base12_empty;                       // rtl-gen/src/drop_fifo.rs:59
     wire base12_full;                        // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_12;                           // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_12;                 // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base12_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_12;                           // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_12;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base12_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base12_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_12;                  // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_24;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_25;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base13_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_12;                  // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_24;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_25;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base13_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base13_wr;                     // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base13_rd;                     // rtl-gen/src/drop_fifo.rs:58
     wire base13_empty;                       // rtl-gen/src/drop_fifo.rs:59
     wire base13_full;                        // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_13;                           // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_13;                 // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base13_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_13;                           // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_13;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base13_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base13_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_13;                  // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_26;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_27;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base14_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_13;                  // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_26;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_27;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base14_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base14_wr;                     // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base14_rd;                     // rtl-gen/src/drop_fifo.rs:58
     wire base14_empty;                       // rtl-gen/src/drop_fifo.rs:59
     wire base14_full;                        // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_14;                           // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_14;                 // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base14_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_14;                           // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_14;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base14_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base14_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_14;                  // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_28;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_29;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base15_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_14;                  // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_28;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_29;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base15_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base15_wr;                     // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base15_rd;                     // rtl-gen/src/drop_fifo.rs:58
     wire base15_empty;                       // rtl-gen/src/drop_fifo.rs:59
     wire base15_full;                        // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_15;                           // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_15;                 // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base15_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_15;                           // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_15;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base15_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base15_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_15;                  // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_30;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_31;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    reg base16_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:377
+    wire range_good_and_15;                  // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_30;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_31;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    reg base16_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:378
     reg [4:0] base16_wr;                     // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] base16_rd;                     // rtl-gen/src/drop_fifo.rs:58
     wire base16_empty;                       // rtl-gen/src/drop_fifo.rs:59
     wire base16_full;                        // rtl-gen/src/drop_fifo.rs:60
-    wire lo_lt_16;                           // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire out_is_node_and_16;                 // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base16_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire lo_lt_16;                           // rtl-gen/src/merge/merger/per_node_mode.rs:388
+    wire out_is_node_and_16;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base16_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base16_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
-    wire range_good_and_16;                  // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_32;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire base_open_and_33;                   // rtl-gen/src/merge/merger/per_node_mode.rs:399
+    wire range_good_and_16;                  // rtl-gen/src/merge/merger/per_node_mode.rs:395
+    wire base_open_and_32;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
+    wire base_open_and_33;                   // rtl-gen/src/merge/merger/per_node_mode.rs:400
     wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:429
     wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:429
     wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:429
-    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:120
-    wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:122
-    wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:127
-    reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:148
-    wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:151
+    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:124
+    wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:126
+    wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:131
+    reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:152
+    wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:157
 
     assign header_fire = header_offered & header_ready;
     assign header_hold = header_offered & (~header_ready);
@@ -1605,24 +1605,24 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
             done_pulse <= 1'b0;
         end else begin
             if (cmd0_pending_and & range_good_not) begin
-                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:268
+                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:269
             end else if (u_fetch0_and & (u_fetch0_kind == 2'd3)) begin
-                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:268
+                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:269
             end
             if (cmd1_pending_and & range_good_not) begin
-                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:268
+                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:269
             end else if (u_fetch1_and & (u_fetch1_kind == 2'd3)) begin
-                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:268
+                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:269
             end
             if (cmd2_pending_and & range_good_not) begin
-                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:268
+                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:269
             end else if (u_fetch2_and & (u_fetch2_kind == 2'd3)) begin
-                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:268
+                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:269
             end
             if (cmd3_pending_and & range_good_not) begin
-                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:268
+                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:269
             end else if (u_fetch3_and & (u_fetch3_kind == 2'd3)) begin
-                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:268
+                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:269
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
@@ -1630,19 +1630,19 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:391
                 busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:295
                 cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:317
-                report_drained <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:172
-                fetch0_cfg_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:217
-                cmd0_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:233
-                end_owed0 <= (~cfg_data_count_gt) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:257
-                fetch1_cfg_pending <= cfg_data_count_gt_1; // rtl-gen/src/merge/merger/per_node_mode.rs:217
-                cmd1_pending <= cfg_data_count_gt_1; // rtl-gen/src/merge/merger/per_node_mode.rs:233
-                end_owed1 <= (~cfg_data_count_gt_1) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:257
-                fetch2_cfg_pending <= cfg_data_count_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:217
-                cmd2_pending <= cfg_data_count_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:233
-                end_owed2 <= (~cfg_data_count_gt_2) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:257
-                fetch3_cfg_pending <= cfg_data_count_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:217
-                cmd3_pending <= cfg_data_count_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:233
-                end_owed3 <= (~cfg_data_count_gt_3) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:257
+                report_drained <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:173
+                fetch0_cfg_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:218
+                cmd0_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:234
+                end_owed0 <= (~cfg_data_count_gt) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:258
+                fetch1_cfg_pending <= cfg_data_count_gt_1; // rtl-gen/src/merge/merger/per_node_mode.rs:218
+                cmd1_pending <= cfg_data_count_gt_1; // rtl-gen/src/merge/merger/per_node_mode.rs:234
+                end_owed1 <= (~cfg_data_count_gt_1) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:258
+                fetch2_cfg_pending <= cfg_data_count_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:218
+                cmd2_pending <= cfg_data_count_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:234
+                end_owed2 <= (~cfg_data_count_gt_2) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:258
+                fetch3_cfg_pending <= cfg_data_count_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:218
+                cmd3_pending <= cfg_data_count_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:234
+                end_owed3 <= (~cfg_data_count_gt_3) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:258
             end else begin
                 if (module_cfg_pending & u_module_cfg_ready) begin
                     module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:383
@@ -1652,58 +1652,58 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 end
                 if (header_fire) begin
                     busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:295
-                    end_owed0 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:259
-                    end_owed1 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:259
-                    end_owed2 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:259
-                    end_owed3 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:259
+                    end_owed0 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:260
+                    end_owed1 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:260
+                    end_owed2 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:260
+                    end_owed3 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:260
                 end else begin
                     if (next_pass & used0_not) begin
-                        end_owed0 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:261
+                        end_owed0 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:262
                     end else if (virtual_end0 & u_module_in0_ready) begin
-                        end_owed0 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:261
+                        end_owed0 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:262
                     end
                     if (next_pass & used1_not) begin
-                        end_owed1 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:261
+                        end_owed1 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:262
                     end else if (virtual_end1 & u_module_in1_ready) begin
-                        end_owed1 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:261
+                        end_owed1 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:262
                     end
                     if (next_pass & used2_not) begin
-                        end_owed2 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:261
+                        end_owed2 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:262
                     end else if (virtual_end2 & u_module_in2_ready) begin
-                        end_owed2 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:261
+                        end_owed2 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:262
                     end
                     if (next_pass & used3_not) begin
-                        end_owed3 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:261
+                        end_owed3 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:262
                     end else if (virtual_end3 & u_module_in3_ready) begin
-                        end_owed3 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:261
+                        end_owed3 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:262
                     end
                 end
                 if (report_fire_and & (~u_module_more)) begin
-                    report_drained <= 1'b1;  // rtl-gen/src/merge/merger/per_node_mode.rs:172
+                    report_drained <= 1'b1;  // rtl-gen/src/merge/merger/per_node_mode.rs:173
                 end
                 if (fetch0_cfg_pending & u_fetch0_cfg_ready) begin
-                    fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:217
+                    fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:218
                 end
                 if (cmd0_pending_and) begin
-                    cmd0_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:233
+                    cmd0_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:234
                 end
                 if (fetch1_cfg_pending & u_fetch1_cfg_ready) begin
-                    fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:217
+                    fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:218
                 end
                 if (cmd1_pending_and) begin
-                    cmd1_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:233
+                    cmd1_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:234
                 end
                 if (fetch2_cfg_pending & u_fetch2_cfg_ready) begin
-                    fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:217
+                    fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:218
                 end
                 if (cmd2_pending_and) begin
-                    cmd2_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:233
+                    cmd2_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:234
                 end
                 if (fetch3_cfg_pending & u_fetch3_cfg_ready) begin
-                    fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:217
+                    fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:218
                 end
                 if (cmd3_pending_and) begin
-                    cmd3_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:233
+                    cmd3_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:234
                 end
             end
             if (busy & u_module_done) begin
@@ -1712,82 +1712,82 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 module_finished <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:51
             end
             if (report_fire) begin
-                report_top_taken <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:164
-                report0_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:164
-                report1_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:164
-                report2_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:164
-                report3_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:164
+                report_top_taken <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:165
+                report0_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:165
+                report1_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:165
+                report2_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:165
+                report3_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:165
             end else begin
                 if (u_module_and & report_ready) begin
-                    report_top_taken <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:164
+                    report_top_taken <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:165
                 end
                 if (u_module_and_1 & u_fetch0_report_ready) begin
-                    report0_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:164
+                    report0_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:165
                 end
                 if (u_module_and_2 & u_fetch1_report_ready) begin
-                    report1_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:164
+                    report1_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:165
                 end
                 if (u_module_and_3 & u_fetch2_report_ready) begin
-                    report2_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:164
+                    report2_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:165
                 end
                 if (u_module_and_4 & u_fetch3_report_ready) begin
-                    report3_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:164
+                    report3_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:165
                 end
             end
             if (!header_hold) begin
-                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/per_node_mode.rs:279
+                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/per_node_mode.rs:280
                 if (u_fetch3_and_1) begin
-                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/per_node_mode.rs:267
                 end else if (u_fetch2_and_1) begin
-                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/per_node_mode.rs:267
                 end else if (u_fetch1_and_1) begin
-                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/per_node_mode.rs:267
                 end else if (u_fetch0_and_1) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/per_node_mode.rs:267
                 end else if (header_fire) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/per_node_mode.rs:206
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/per_node_mode.rs:207
                 end
                 if (((u_module_out_valid & out_is_ref_mux) & (u_module_kind == 2'd0)) & u_module_err) begin
-                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/per_node_mode.rs:365
+                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/per_node_mode.rs:366
                 end else if (header_fire) begin
-                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/per_node_mode.rs:365
+                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/per_node_mode.rs:366
                 end
                 if (base16_push & base16_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base15_push & base15_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base14_push & base14_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base13_push & base13_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base12_push & base12_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base11_push & base11_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base10_push & base10_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base9_push & base9_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base8_push & base8_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base7_push & base7_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base6_push & base6_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base5_push & base5_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base4_push & base4_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base3_push & base3_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base2_push & base2_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base1_push & base1_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (base0_push & base0_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:392
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:393
                 end else if (header_fire) begin
-                    leaf_overflow_q <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:373
+                    leaf_overflow_q <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:374
                 end
             end
             if (leaves_all_valid & leaves_all_end) begin
@@ -1796,14 +1796,14 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 leaves_done <= 1'b0;         // rtl-gen/src/merge/merger/leaf_merge.rs:86
             end
             if ((crefs_end_sent_and & u_writer_crefs_ready) & cref_is_ref_not) begin
-                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:359
+                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:360
             end else if (header_fire) begin
-                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:359
+                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:360
             end
             if (base_open_and_1 & (~range_good_and)) begin
-                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (header_fire) begin
                 base0_wr <= 5'd0;            // rtl-gen/src/drop_fifo.rs:103
@@ -1945,84 +1945,84 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 end
             end
             if (base_open_and_3 & (~range_good_and_1)) begin
-                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_5 & (~range_good_and_2)) begin
-                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_7 & (~range_good_and_3)) begin
-                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_9 & (~range_good_and_4)) begin
-                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_11 & (~range_good_and_5)) begin
-                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_13 & (~range_good_and_6)) begin
-                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_15 & (~range_good_and_7)) begin
-                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_17 & (~range_good_and_8)) begin
-                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_19 & (~range_good_and_9)) begin
-                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_21 & (~range_good_and_10)) begin
-                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_23 & (~range_good_and_11)) begin
-                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_25 & (~range_good_and_12)) begin
-                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_27 & (~range_good_and_13)) begin
-                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_29 & (~range_good_and_14)) begin
-                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_31 & (~range_good_and_15)) begin
-                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             if (base_open_and_33 & (~range_good_and_16)) begin
-                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end else if (header_fire) begin
-                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:401
+                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:402
             end
             done_pulse <= header_fire;
         end

@@ -92,6 +92,7 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             header_open: s.header_open,
             commands_sent: s.commands_sent,
             report_drained: None,
+            module_idle: Some(s.module.output("idle")),
             flags: [leaf_over, count_over, ferr, ferr_rank],
             busy: s.busy,
             dropping: &s.dropping,

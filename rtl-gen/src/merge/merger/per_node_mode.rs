@@ -95,6 +95,7 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             header_open: s.header_open,
             commands_sent: s.commands_sent,
             report_drained: Some(report_drained),
+            module_idle: None,
             flags: [leaf_over, count_over, ferr, ferr_rank],
             busy: s.busy,
             dropping: &s.dropping,

@@ -23,6 +23,9 @@ pub(super) struct Tail<'a, 'm> {
     /// Per-node: the merge's report has reached every side it feeds (the
     /// fetchers wait for its decisions). Level modes feed no fetcher.
     pub(super) report_drained: Option<Signal<'m>>,
+    /// Level modes: the top is idle only once the merging module is too.
+    /// (Per-node, the next `cfg` waits for it already.)
+    pub(super) module_idle: Option<Signal<'m>>,
     pub(super) flags: [Signal<'m>; 4],
     pub(super) busy: Signal<'m>,
     pub(super) dropping: &'a [Signal<'m>],
@@ -57,6 +60,7 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
         header_open,
         commands_sent,
         report_drained,
+        module_idle,
         flags: [leaf_over, count_over, ferr, ferr_rank],
         busy,
         dropping,
@@ -148,7 +152,11 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
     let done = m.reg("done_pulse", 1);
     done.next(header_fire);
     m.output("done", done);
-    let idle = (!busy & no_drop).name("merger_idle");
+    let idle = match module_idle {
+        Some(mi) => !busy & no_drop & mi,
+        None => !busy & no_drop,
+    }
+    .name("merger_idle");
     m.output("idle", idle);
     m.output("module_done", module.output("done"));
 }

@@ -113,7 +113,7 @@ const RUNS: [(&str, bool); 18] = [
         false,
     ),
     ("--unit merger --mode per-node:1/2 --count {1}0", false),
-    ("{merger} --count {7}2", true),
+    ("{merger} --count {1}50", true),
     // `report` held in runs of 64: the per-node top's report fork then
     // holds the merging module's report skid buffers (measured: two
     // branch points that bursty:4,4 on `report` never reached).
@@ -122,13 +122,14 @@ const RUNS: [(&str, bool); 18] = [
         true,
     ),
     // The same with another seed: its stalls reach the per-node network's
-    // out skid buffer (three branch points) that seed 1's miss since the
-    // hard merges' leaf flood moved their timing (measured).
+    // out skid buffer (branch points that seed 1's miss). Which seeds do is
+    // a matter of timing: seed 2 did until the root cuts joined the hard
+    // merges; of seeds 2 to 13, only 10 does since (measured).
     (
-        "{merger} --mode per-node:1/2 --count {7}0 --seed 2 --stalls bursty:4,4 --stall-stream report=bursty:64,2",
+        "{merger} --mode per-node:1/2 --count {7}0 --seed 10 --stalls bursty:4,4 --stall-stream report=bursty:64,2",
         true,
     ),
-    ("{hierarchy} --merges hard --count {7}0 --stalls coin", true),
+    ("{hierarchy} --merges hard --count {1}50 --stalls coin", true),
     // The outputs held in long runs while the answers flow freely
     // (`--stall-stream`): the hierarchy unit's one run of other stalls
     // than a coin. The same on the merger tops reaches no point their own
@@ -152,19 +153,19 @@ const FLOORS: [(&str, Aims); 3] = [
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6",
         // What CI's run measures with the hard merges of
-        // `golden::vectors::hard_merges`, the capacity clusters among them
-        // (95.3% / 60.9%), rounded down.
+        // `golden::vectors::hard_merges`, the capacity clusters and the root
+        // cuts among them, and 150 merges (95.2% / 63.7%), rounded down.
         Aims {
             line: 95.0,
-            toggle: 60.5,
+            toggle: 63.5,
         },
     ),
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_pn1_2_r16_f256_c5_l6",
-        // Likewise, `report` held in runs of 64, two seeds (95.1% / 61.9%).
+        // Likewise, `report` held in runs of 64, two seeds (95.2% / 65.1%).
         Aims {
             line: 95.0,
-            toggle: 61.5,
+            toggle: 65.0,
         },
     ),
     (
@@ -173,10 +174,10 @@ const FLOORS: [(&str, Aims); 3] = [
         // cases (the first after a burst of determine commands) and both
         // leaf floods, then hard-kind random merges, placements a fraction
         // off the grid, the translation unit's hard determine commands
-        // before the first named case (95.4% / 65.4%).
+        // before the first named case, 150 merges (95.2% / 69.5%).
         Aims {
             line: 95.0,
-            toggle: 65.0,
+            toggle: 69.0,
         },
     ),
 ];

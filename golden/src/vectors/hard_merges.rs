@@ -22,6 +22,7 @@ use crate::params::Params;
 use crate::scenes::push_triangle;
 use crate::scenes::random_soup;
 use crate::store::{Hierarchy, HierarchyStore, NodeRecord, Reference};
+use crate::translate::stimulus::SplitMix64;
 use crate::translate::{Translation, TranslationTable};
 use glam::{DVec3, Vec3};
 
@@ -73,7 +74,9 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// whose top holds 16 roots (a leaf and an inner node in each LOD-1
 /// voxel: every entry of the default root sorter), the same stored in
 /// reverse (every entry of the sorter moves), sixteen roots at LOD 5
-/// stored against Morton order, a ladder of leaves
+/// stored against Morton order, [`ROOT_CUTS`] merges of soups cut into up to
+/// as many roots as the sorter holds, in a random order ([`root_cuts`]),
+/// a ladder of leaves
 /// at every LOD above the merging level, an input stored depth first
 /// with indices near `2^I`, three merges of two inputs under LOD-0 roots
 /// (the merged top at LOD 0), the deep tops and the deep clusters, each
@@ -101,6 +104,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     cases.push(leaf_ladder(p)?);
     cases.push(depth_first_store(p)?);
     cases.extend(sixteen_deep_roots(p)?);
+    cases.extend(root_cuts(p, d.roots)?);
     cases.extend(lod0_tops(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= k);
     for (store, table, ids) in &cases {
@@ -173,7 +177,7 @@ pub fn out_id(p: &Params) -> u8 {
 /// The named cases of [`hard_merges`] whose inputs are all valid, in its
 /// order: the real cases, an input filling the scene, the 16-root input,
 /// the leaf ladder, the depth-first store, the sixteen deep roots, the
-/// deep tops and clusters, the capacity clusters, those of at most `k`
+/// root cuts, the deep tops and clusters, the capacity clusters, those of at most `k`
 /// inputs (what the hierarchy unit's hard merges write into its table by determine
 /// commands: a case's translations are its table's).
 pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
@@ -184,6 +188,7 @@ pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
     cases.push(leaf_ladder(p)?);
     cases.push(depth_first_store(p)?);
     cases.extend(sixteen_deep_roots(p)?);
+    cases.extend(root_cuts(p, d.roots)?);
     cases.extend(lod0_tops(p)?);
     cases.extend(deep_cases(p)?);
     cases.extend(capacity_clusters(p)?);
@@ -659,6 +664,78 @@ fn relaid_depth_first(h: &Hierarchy, roots: &[u32]) -> Hierarchy {
         top_lod,
         ..h.clone()
     }
+}
+
+/// The LODs below `h`'s top at which it can be cut into 2 to `most_roots`
+/// roots (no leaf above the cut, which would be lost), with their node
+/// counts.
+fn cut_lods(h: &Hierarchy, most_roots: usize) -> Vec<(u8, usize)> {
+    let at = |l: u8| h.nodes.iter().filter(move |n| n.voxel.lod == l);
+    (h.top_lod + 1..=h.params.max_lod)
+        .take_while(|l| !at(l - 1).any(|n| n.leaf))
+        .map(|l| (l, at(l).count()))
+        .filter(|(_, n)| (2..=most_roots).contains(n))
+        .collect()
+}
+
+/// `h` cut at `lod`: its nodes there become the roots, stored in a random
+/// order (a store written by other software: SPEC 3 asks only that every
+/// root lie at `top_lod`), the rest depth first.
+fn cut_at(rng: &mut SplitMix64, h: &Hierarchy, lod: u8) -> Hierarchy {
+    let mut roots: Vec<u32> = (0..h.nodes.len() as u32)
+        .filter(|n| h.nodes[*n as usize].voxel.lod == lod)
+        .collect();
+    // Fisher-Yates from the run's seed.
+    for i in (1..roots.len()).rev() {
+        roots.swap(i, rng.below(i as u64 + 1) as usize);
+    }
+    relaid_depth_first(h, &roots)
+}
+
+/// `h` cut at a random LOD of [`cut_lods`] (`Merges::Hard`'s random merges,
+/// a third of their soups), its roots in a random order. So the root sorter
+/// takes roots of every LOD with random keys, records and arrival order,
+/// where a builder's several roots lie at LOD 1 in Morton order (4.7).
+/// `None` when no LOD qualifies.
+pub fn random_cut(rng: &mut SplitMix64, h: &Hierarchy, most_roots: usize) -> Option<Hierarchy> {
+    let lods = cut_lods(h, most_roots);
+    if lods.is_empty() {
+        return None;
+    }
+    let (lod, _) = lods[rng.below(lods.len() as u64) as usize];
+    Some(cut_at(rng, h, lod))
+}
+
+/// Merges of [`root_cuts`].
+pub const ROOT_CUTS: u64 = 4;
+
+/// [`ROOT_CUTS`] merges of two soups of 60 triangles, each cut at the LOD
+/// of the most roots the root sorter holds (`most_roots`), stored in a
+/// random order and placed at random: every entry of the sorter takes
+/// roots whose keys, boxes, `first` and `count` differ from merge to
+/// merge, arriving out of order, where the named several-root cases repeat
+/// one store each. A soup with no such LOD stays as built.
+fn root_cuts(p: &Params, most_roots: usize) -> Result<Vec<RealCase>> {
+    (0..ROOT_CUTS)
+        .map(|j| {
+            let mut rng = SplitMix64(0x5eed_c075 + j);
+            let inputs = (1..=2u8)
+                .map(|id| {
+                    let size = 0.1 + 0.1 * (j + id as u64) as f32;
+                    let h = try_soup(p, id, 60, size, rng.next_u64()).map_err(golden_err)?;
+                    let fullest = cut_lods(&h, most_roots).into_iter().max_by_key(|c| c.1);
+                    let h = match fullest {
+                        Some((lod, _)) => cut_at(&mut rng, &h, lod),
+                        None => h,
+                    };
+                    let frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
+                    let t = place(&h, frac);
+                    Ok((h, t))
+                })
+                .collect::<Result<Vec<_>>>()?;
+            case_of(p, inputs)
+        })
+        .collect()
 }
 
 /// [`sixteen_deep_roots`]'s triangles in the unit cube, which
@@ -1332,6 +1409,47 @@ mod tests {
                 assert_eq!(a.writer.refs, renumbered, "{at}");
                 assert!(a.writer.refs.iter().any(|r| r.hier == 1), "{at}");
             }
+        }
+    }
+
+    /// The root cuts fill most of the sorter with roots out of Morton
+    /// order, deeper than LOD 1, and merge as the same cuts stored in
+    /// Morton order (the sorter's order is the merge's), at the default and
+    /// at D = 8.
+    #[test]
+    fn root_cuts_fill_the_sorter_out_of_order_and_merge_as_the_ordered_ones() {
+        let morton = |n: &NodeRecord| crate::grid::morton3(n.voxel.x, n.voxel.y, n.voxel.z);
+        for p in [Params::default(), Params::new(8, 0, 12, 3).unwrap()] {
+            let cases = root_cuts(&p, 16).unwrap();
+            assert_eq!(cases.len() as u64, ROOT_CUTS);
+            let mut most = 0;
+            for (n, (store, table, ids)) in cases.iter().enumerate() {
+                let at = format!("D = {} cut {n}", p.max_lod);
+                let mut ordered = store.clone();
+                for id in ids {
+                    let h = store.get(*id).unwrap();
+                    assert!(h.root_count <= 16, "{at}");
+                    assert!(h.top_lod > 1 || h.root_count == 1, "{at}");
+                    most = most.max(h.root_count);
+                    let mut roots: Vec<u32> = (0..h.root_count).collect();
+                    roots.sort_by_key(|r| morton(&h.nodes[*r as usize]));
+                    ordered.replace(relaid_depth_first(h, &roots)).unwrap();
+                }
+                let unordered = ids.iter().any(|id| {
+                    let h = store.get(*id).unwrap();
+                    h.roots().windows(2).any(|w| morton(&w[0]) > morton(&w[1]))
+                });
+                assert!(unordered, "{at}: every input's roots in Morton order");
+                for mode in BOTH_MODES {
+                    let sizes = MergerSizes::new(&p);
+                    let a = merger_transaction(store, table, ids, mode, 7, 2, sizes).unwrap();
+                    let b = merger_transaction(&ordered, table, ids, mode, 7, 2, sizes).unwrap();
+                    assert_eq!(a.header.fetch_err, 0, "{at} {mode}");
+                    assert_eq!(a.header, b.header, "{at} {mode}");
+                    assert_eq!(a.writer.nodes, b.writer.nodes, "{at} {mode}");
+                }
+            }
+            assert!(most >= 12, "D = {}: at most {most} roots", p.max_lod);
         }
     }
 

@@ -21,6 +21,7 @@ use crate::merge::MergeMode;
 use crate::store::{Hierarchy, HierarchyStore, NodeRecord, Reference};
 use crate::translate::stimulus::SplitMix64;
 use crate::translate::{Translation, TranslationTable};
+use crate::vectors::hard_merges::random_cut;
 
 use crate::merge::merge_module::MergeDesign;
 
@@ -374,9 +375,12 @@ pub enum Merges {
 /// A random merge as `kind` draws it: [`random_merger_merge`], or for
 /// [`Merges::Hard`] soups of one scale per merge, edges of `0.32 * 2^-e` of
 /// the scene's `2^-3` corner with `e` in `0..=12`, in half the merges every
-/// soup a voxel or two from the first. So the merging level reaches deep
-/// LODs with the merged top far above it, and every level of the upper
-/// builder and the writer between carries nodes.
+/// soup a voxel or two from the first, and a third of the soups cut below
+/// their top into several roots stored out of order
+/// ([`random_cut`]). So the merging level reaches deep
+/// LODs with the merged top far above it, every level of the upper
+/// builder and the writer between carries nodes, and the root sorter
+/// takes roots of every LOD.
 pub fn random_merger_merge_of(
     rng: &mut SplitMix64,
     d: &MergeDesign,
@@ -440,12 +444,15 @@ pub fn random_merger_case_of(
                 Merges::Random => 0.02 + rng.below(30) as f32 / 100.0,
                 Merges::Hard => scale * (1.0 + rng.below(4) as f32 / 4.0),
             };
-            let h = try_soup(p, id, tris, size, rng.next_u64()).map_err(|e| {
+            let mut h = try_soup(p, id, tris, size, rng.next_u64()).map_err(|e| {
                 format!(
                     "a random soup of {tris} triangles does not build at D = {}, I = {}: {e}; expected parameters that hold it (a larger --index-bits)",
                     p.max_lod, p.index_bits
                 )
             })?;
+            if kind == Merges::Hard && rng.below(3) == 0 {
+                h = random_cut(rng, &h, d.roots).unwrap_or(h);
+            }
             let frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
             let t = match (kind, together, first_t) {
                 (Merges::Hard, true, Some(first)) => {

@@ -153,19 +153,20 @@ const FLOORS: [(&str, Aims); 3] = [
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6",
         // What CI's run measures with the hard merges of
-        // `golden::vectors::hard_merges`, the capacity clusters and the root
-        // cuts among them, and 150 merges (95.2% / 63.7%), rounded down.
+        // `golden::vectors::hard_merges`, the capacity clusters, the root
+        // cuts and the huge clusters among them, and 150 merges (95.2% /
+        // 66.0%), rounded down.
         Aims {
             line: 95.0,
-            toggle: 63.5,
+            toggle: 65.5,
         },
     ),
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_pn1_2_r16_f256_c5_l6",
-        // Likewise, `report` held in runs of 64, two seeds (95.2% / 65.1%).
+        // Likewise, `report` held in runs of 64, two seeds (95.2% / 65.6%).
         Aims {
             line: 95.0,
-            toggle: 65.0,
+            toggle: 65.5,
         },
     ),
     (
@@ -174,10 +175,10 @@ const FLOORS: [(&str, Aims); 3] = [
         // cases (the first after a burst of determine commands) and both
         // leaf floods, then hard-kind random merges, placements a fraction
         // off the grid, the translation unit's hard determine commands
-        // before the first named case, 150 merges (95.2% / 69.5%).
+        // before the first named case, 150 merges (95.2% / 71.5%).
         Aims {
             line: 95.0,
-            toggle: 69.0,
+            toggle: 71.0,
         },
     ),
 ];

@@ -75,14 +75,15 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// voxel: every entry of the default root sorter), the same stored in
 /// reverse (every entry of the sorter moves), sixteen roots at LOD 5
 /// stored against Morton order, [`ROOT_CUTS`] merges of soups cut into up to
-/// as many roots as the sorter holds, in a random order ([`root_cuts`]),
+/// as many roots as the sorter holds, in a random order (`root_cuts`),
 /// a ladder of leaves
 /// at every LOD above the merging level, an input stored depth first
 /// with indices near `2^I`, three merges of two inputs under LOD-0 roots
 /// (the merged top at LOD 0), the deep tops and the deep clusters, each
 /// through `d`'s mode, and at their end the capacity clusters
 /// (`capacity_clusters`: levels of hundreds of nodes, which a writer of
-/// `2^5` entries a buffer refuses); per code of [`CFG_ERRORS`] a merge
+/// `2^5` entries a buffer refuses) and, at `I = 12` and less, the huge
+/// clusters (`huge_clusters`: levels of a thousand nodes and more); per code of [`CFG_ERRORS`] a merge
 /// whose last input's `cfg` makes its fetcher refuse it, and one whose first input's
 /// entry is invalid; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`), on
@@ -125,6 +126,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
         .iter()
         .chain(&floods)
         .chain(&capacity_clusters(p)?)
+        .chain(&huge_clusters(p)?)
         .filter(|c| c.2.len() <= k)
     {
         let tx =
@@ -192,6 +194,7 @@ pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
     cases.extend(lod0_tops(p)?);
     cases.extend(deep_cases(p)?);
     cases.extend(capacity_clusters(p)?);
+    cases.extend(huge_clusters(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= d.inputs);
     Ok(cases)
 }
@@ -310,6 +313,33 @@ fn capacity_clusters(p: &Params) -> Result<Vec<RealCase>> {
         [41, 42],
     )
 }
+
+/// Per `c` in `D - 5..D` (`c >= 1`), two soups of [`HUGE_TRIANGLES`]
+/// triangles filling the same LOD-`c` voxel, at `I = 12` and less: at D = 8
+/// inputs of up to 1,277 nodes and 3,693 prims, levels of up to 469 nodes
+/// an input, so the leaves' `first`, the node indices and references, and
+/// the levels' indices and the builder's counters set upper bits of 12-bit
+/// fields that the capacity clusters' hundreds leave clear (the writer of
+/// `2^5` entries refuses most as `CAPACITY`, after the fetchers, the module
+/// and the builder have run them whole). None above `I = 12`, where they
+/// would not reach the upper bits and their levels would cost Icarus
+/// minutes a run; a cluster that outgrows the index at its `D` is left out.
+fn huge_clusters(p: &Params) -> Result<Vec<RealCase>> {
+    if p.index_bits > HUGE_MOST_INDEX_BITS {
+        return Ok(Vec::new());
+    }
+    Ok((p.max_lod.saturating_sub(5).max(1)..p.max_lod)
+        .filter_map(|c| clusters(p, c..c + 1, HUGE_TRIANGLES, [51, 52]).ok())
+        .flatten()
+        .collect())
+}
+
+/// Triangles of each soup of `huge_clusters`: their prims fit `2^12`
+/// indices at D = 8 (1,500 give 5,315).
+pub const HUGE_TRIANGLES: usize = 1000;
+
+/// The widest index `huge_clusters` are made for.
+pub const HUGE_MOST_INDEX_BITS: u8 = 12;
 
 /// Per `c` in `lods`, a case of two soups of `triangles` triangles each
 /// (drawn from `seeds`) in the LOD-`c` voxel at the scene's corner.
@@ -692,7 +722,7 @@ fn cut_at(rng: &mut SplitMix64, h: &Hierarchy, lod: u8) -> Hierarchy {
     relaid_depth_first(h, &roots)
 }
 
-/// `h` cut at a random LOD of [`cut_lods`] (`Merges::Hard`'s random merges,
+/// `h` cut at a random LOD of `cut_lods` (`Merges::Hard`'s random merges,
 /// a third of their soups), its roots in a random order. So the root sorter
 /// takes roots of every LOD with random keys, records and arrival order,
 /// where a builder's several roots lie at LOD 1 in Morton order (4.7).
@@ -706,7 +736,7 @@ pub fn random_cut(rng: &mut SplitMix64, h: &Hierarchy, most_roots: usize) -> Opt
     Some(cut_at(rng, h, lod))
 }
 
-/// Merges of [`root_cuts`].
+/// Merges of `root_cuts`.
 pub const ROOT_CUTS: u64 = 4;
 
 /// [`ROOT_CUTS`] merges of two soups of 60 triangles, each cut at the LOD
@@ -1160,6 +1190,32 @@ mod tests {
                 assert!(w.nodes >= 4, "{at}");
             }
         }
+    }
+
+    /// The huge clusters exist at I = 12 only; every input's prims pass
+    /// `2^10`, some input's `2^11` (its leaves' `first` set the top bit),
+    /// some input's nodes pass `2^10`, and every merge is exact.
+    #[test]
+    fn huge_clusters_reach_the_upper_index_bits_at_i12_only() {
+        assert!(huge_clusters(&Params::default()).unwrap().is_empty());
+        let p = Params::new(8, 0, 12, 3).unwrap();
+        let cases = huge_clusters(&p).unwrap();
+        assert_eq!(cases.len(), 5);
+        let sizes = MergerSizes::new(&p);
+        let (mut most_nodes, mut most_prims) = (0, 0);
+        for (store, table, ids) in &cases {
+            for i in ids {
+                let h = store.get(*i).unwrap();
+                assert!(h.prims.len() > 1 << 10, "{} prims", h.prims.len());
+                most_nodes = most_nodes.max(h.nodes.len());
+                most_prims = most_prims.max(h.prims.len());
+            }
+            let mode = MergeMode::Overlap { num: 1, den: 2 };
+            let tx = merger_transaction(store, table, ids, mode, 7, 2, sizes).unwrap();
+            assert!(tx.exact);
+        }
+        assert!(most_nodes > 1 << 10, "{most_nodes} nodes");
+        assert!(most_prims > 1 << 11, "{most_prims} prims");
     }
 
     /// The capacity clusters' inputs hold hundreds of nodes (indices past
